@@ -1,0 +1,1 @@
+"""Command-line interface: ``python launch.py <command>`` or ``robot-retarget <command>``."""

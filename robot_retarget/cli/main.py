@@ -1,0 +1,73 @@
+"""Top-level argument parsing: one sub-command per module listed in COMMAND_MODULES.
+
+Command modules are imported lazily, only the one being run, so ``--help`` and light commands
+never pay for importing torch or casadi.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+from typing import cast
+
+from robot_retarget import __version__
+from robot_retarget.cli.command import Command
+from robot_retarget.errors import RetargetError
+
+# (command name, module, one-line help). The help lives here too so --help needs no imports.
+COMMANDS: tuple[tuple[str, str, str], ...] = (
+    (
+        "inspect",
+        "robot_retarget.cli.inspect_cmd",
+        "Describe motion files: skeleton, mapping, fps, units.",
+    ),
+)
+
+
+def _load(module: str) -> Command:
+    return cast(Command, importlib.import_module(module))
+
+
+def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="robot-retarget",
+        description="Retarget human motion to Dynamixel-servo humanoids.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, module, help_text in COMMANDS:
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        if name == selected:
+            _load(module).configure(p)
+        else:
+            # Parsed only to produce the top-level help; real arguments load with the command.
+            p.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    names = {name for name, _, _ in COMMANDS}
+    selected = next((a for a in args_list if not a.startswith("-")), None)
+    if selected not in names:
+        selected = None
+    parser = build_parser(selected)
+    args = parser.parse_args(args_list)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    module = dict((n, m) for n, m, _ in COMMANDS)[args.command]
+    try:
+        return _load(module).run(args)
+    except RetargetError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,100 @@
+"""One error hierarchy for the whole project.
+
+Every error carries the values that caused it as attributes, and its message says what the user
+can do next. Catch :class:`RetargetError` to catch everything the library raises on purpose.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class RetargetError(Exception):
+    """Root of every error robot-retarget raises on purpose."""
+
+
+class ConfigError(RetargetError):
+    """A robot configuration (YAML) is wrong: names the file, the key and what was allowed."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: str | Path | None = None,
+        key: str | None = None,
+        allowed: str | None = None,
+    ) -> None:
+        self.path = None if path is None else str(path)
+        self.key = key
+        self.allowed = allowed
+        parts = []
+        if self.path is not None:
+            parts.append(self.path)
+        if key is not None:
+            parts.append(f"key '{key}'")
+        prefix = ": ".join(parts)
+        text = f"{prefix}: {message}" if prefix else message
+        if allowed is not None:
+            text += f" (allowed: {allowed})"
+        super().__init__(text)
+
+
+class MotionFormatError(RetargetError):
+    """A motion file (BVH, trajectory CSV/JSON/NPZ) cannot be read: names the file and line."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: str | Path | None = None,
+        line: int | None = None,
+    ) -> None:
+        self.path = None if path is None else str(path)
+        self.line = line
+        where = self.path or "<motion>"
+        if line is not None:
+            where += f", line {line}"
+        super().__init__(f"{where}: {message}")
+
+
+class JointMappingError(MotionFormatError):
+    """A skeleton's joints cannot be mapped onto the canonical human skeleton."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        missing: tuple[str, ...] = (),
+        path: str | Path | None = None,
+    ) -> None:
+        self.missing = missing
+        super().__init__(message, path=path)
+
+
+class SourceError(RetargetError):
+    """A live motion source (UDP, TCP, replay) failed or sent something unusable."""
+
+
+class ModelLoadError(RetargetError):
+    """A retargeting model or checkpoint could not be loaded."""
+
+
+class SolveError(RetargetError):
+    """The retargeting optimizer got invalid input (NaN, wrong shape) and produced no command."""
+
+
+class HardwareError(RetargetError):
+    """Something went wrong talking to the robot."""
+
+
+class CommunicationError(HardwareError):
+    """A bus transaction failed (timeout, corrupt packet); retryable."""
+
+
+class ServoFaultError(HardwareError):
+    """A servo reported a hardware error; never retried, torque goes off."""
+
+    def __init__(self, message: str, *, servo_id: int, bits: tuple[str, ...] = ()) -> None:
+        self.servo_id = servo_id
+        self.bits = bits
+        super().__init__(message)
