@@ -1,0 +1,1 @@
+"""Robot descriptions: configs, servo models and units, robot forward kinematics."""
