@@ -84,11 +84,19 @@ def to_euler(q: npt.ArrayLike, order: str) -> FloatArray:
     at_zero = np.abs(theta2) < _GIMBAL_TOL
     at_pi = np.abs(theta2 - np.pi) < _GIMBAL_TOL
     # theta1 = θ+ − θ−, theta3 = θ+ + θ−. At a lock only their sum (θ2 = 0) or difference
-    # (θ2 = π) is defined: put it all in theta1 and set theta3 = 0.
-    theta1 = np.where(
-        at_zero, 2.0 * half_sum, np.where(at_pi, -2.0 * half_diff, half_sum - half_diff)
-    )
-    theta3 = np.where(at_zero | at_pi, 0.0, half_sum + half_diff)
+    # (θ2 = π) is defined: put it all in one angle and set the other to 0 — the one that ends
+    # up last in the caller's order (theta3 here, theta1 for intrinsic orders, which reverse).
+    lock = at_zero | at_pi
+    if intrinsic:
+        theta1 = np.where(lock, 0.0, half_sum - half_diff)
+        theta3 = np.where(
+            at_zero, 2.0 * half_sum, np.where(at_pi, 2.0 * half_diff, half_sum + half_diff)
+        )
+    else:
+        theta1 = np.where(
+            at_zero, 2.0 * half_sum, np.where(at_pi, -2.0 * half_diff, half_sum - half_diff)
+        )
+        theta3 = np.where(lock, 0.0, half_sum + half_diff)
     if not proper:
         theta3 = eps * theta3
         theta2 = theta2 - 0.5 * np.pi

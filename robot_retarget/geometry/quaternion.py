@@ -210,9 +210,20 @@ def to_axis_angle(q: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
 
 
 def to_rotation_vector(q: npt.ArrayLike) -> FloatArray:
-    """Rotation vectors (axis · angle, angle in [0, π]) of unit quaternions."""
-    axis, angle = to_axis_angle(q)
-    return axis * angle[..., None]
+    """Rotation vectors (axis · angle, angle in [0, π]) of unit quaternions, exact near zero."""
+    qc = canonical_sign(q)
+    w = qc[..., :1]
+    v = qc[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    # 2·atan2(s, w)/s → (2/w)(1 − s²/3w²) near zero: keeps the direction of tiny rotations,
+    # which going through to_axis_angle (x̂ below |v| = 1e-12) loses.
+    small = s < 1e-6
+    safe_s = np.where(small, 1.0, s)
+    safe_w = np.where(small & (w > 0.0), w, 1.0)
+    factor = np.where(
+        small, (2.0 / safe_w) * (1.0 - s**2 / (3.0 * safe_w**2)), 2.0 * np.arctan2(s, w) / safe_s
+    )
+    return factor * v
 
 
 def angle_between(a: npt.ArrayLike, b: npt.ArrayLike) -> FloatArray:

@@ -136,7 +136,7 @@ def local_from_global(skeleton: Skeleton, global_quats: npt.ArrayLike) -> FloatA
     """Local rotations (…, J, 4) from global ones: q_n = G_parent(n)* ⊗ G_n."""
     g = quat.as_float_array(global_quats)
     local = g.copy()
-    parents = np.array(skeleton.parents[1:])
+    parents = np.array(skeleton.parents[1:], dtype=np.int64)  # int even when empty
     local[..., 1:, :] = quat.mul(quat.conjugate(g[..., parents, :]), g[..., 1:, :])
     return local
 
