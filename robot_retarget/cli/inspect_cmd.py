@@ -1,0 +1,99 @@
+"""``inspect FILE...``: describe motion files (skeleton family, mapping, frames, units).
+
+Each file is reported on its own; a file that cannot be read gets a one-line error on stderr
+and the others are still reported. The exit code is 1 if any file failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from robot_retarget.errors import RetargetError
+from robot_retarget.motion.bvh import read_bvh
+from robot_retarget.motion.canonicalize import canonicalize
+from robot_retarget.motion.units import UNIT_SCALES_M
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
+
+NAME = "inspect"
+HELP = "Describe motion files: skeleton, mapping, fps, units."
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("files", nargs="+", metavar="FILE", help="BVH files")
+    parser.add_argument(
+        "--json", action="store_true", help="print a JSON list, one object per file"
+    )
+    parser.add_argument(
+        "--unit",
+        choices=sorted(UNIT_SCALES_M),
+        help="length unit of the files (default: detected from the skeleton's height)",
+    )
+    parser.add_argument(
+        "--keep-tpose", action="store_true", help="keep a synthetic first T-pose frame"
+    )
+
+
+def describe(path: str, *, unit: str | None = None, keep_tpose: bool = False) -> dict[str, Any]:
+    """Facts about one motion file, as JSON-ready values."""
+    clip = read_bvh(path)
+    motion = canonicalize(clip, unit=unit, drop_tpose=False if keep_tpose else "auto")
+    mapping = dict(zip(CANONICAL_JOINTS, motion.source_joints, strict=True))
+    return {
+        "file": path,
+        "family": motion.name_family,
+        "joints": clip.num_joints,
+        "end_sites": len(clip.end_site_parents),
+        "mapping": mapping,
+        "synthesized": list(motion.synthesized_joints),
+        "frames": motion.num_frames,
+        "file_frames": clip.num_frames,
+        "fps": motion.fps,
+        "duration_s": motion.duration_s,
+        "unit": motion.unit,
+        "height_m": motion.height_m,
+        "up_axis": motion.up_axis,
+        "tpose_dropped": motion.dropped_tpose,
+        "tpose_frames_dropped": motion.tpose_frames_dropped,
+    }
+
+
+def format_text(info: dict[str, Any]) -> str:
+    mapped = [f"{c}←{s}" for c, s in info["mapping"].items() if s is not None]
+    synth = ", ".join(info["synthesized"]) or "none"
+    tpose = f"yes ({info['tpose_frames_dropped']} frame(s))" if info["tpose_dropped"] else "no"
+    return "\n".join(
+        [
+            f"{info['file']}",
+            f"  family:      {info['family']}",
+            f"  joints:      {info['joints']} (+{info['end_sites']} end sites)",
+            f"  mapped:      {len(mapped)}/{len(info['mapping'])}: {', '.join(mapped)}",
+            f"  synthesised: {synth}",
+            f"  frames:      {info['frames']} at {info['fps']:.6g} fps "
+            f"({info['duration_s']:.3f} s)",
+            f"  unit:        {info['unit']} (height {info['height_m']:.3f} m, "
+            f"{info['up_axis']} up)",
+            f"  T-pose dropped: {tpose}",
+        ]
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    reports: list[dict[str, Any]] = []
+    failed = 0
+    for path in args.files:
+        try:
+            info = describe(path, unit=args.unit, keep_tpose=args.keep_tpose)
+        except RetargetError as exc:
+            failed += 1
+            print(f"error: {exc}", file=sys.stderr)
+            continue
+        if args.json:
+            reports.append(info)
+        else:
+            print(format_text(info))
+    if args.json:
+        print(json.dumps(reports, indent=2))
+    return 1 if failed else 0

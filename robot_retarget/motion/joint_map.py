@@ -1,0 +1,169 @@
+"""Which source joint realises each canonical joint, and how missing ones are synthesised.
+
+A :class:`JointMap` is found by name (a known naming family) or, failing that, from the tree
+and its rest-pose geometry (auto_map.py). For every canonical joint it records
+
+- ``source_joints``: the mapped source joint, or None when synthesised;
+- ``rotation_joints``: the source joint whose *global* rotation the canonical joint takes;
+- ``position_points``: the source point whose rest position places the canonical joint: a
+  joint index j, or ``num_source_joints + e`` for End Site e.
+
+Synthesis follows robot_retarget.skeleton.canonical: a missing Spine1 / Spine2 is a
+zero-length copy of the joint below; a missing Shoulder is a copy of Spine2 placed at the arm;
+a missing ToeBase sits at the foot's End Site (a zero-length copy of the foot if it has none).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.errors import JointMappingError
+from robot_retarget.motion import name_families as nf
+from robot_retarget.motion.auto_map import TreeGeometry, auto_map
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, REQUIRED_JOINTS
+
+FloatArray = npt.NDArray[np.float64]
+
+FAMILIES: tuple[str, ...] = (*nf.FAMILY_TABLES, nf.AUTOMATIC)
+
+
+@dataclass(frozen=True)
+class JointMap:
+    """How the canonical joints are taken from a source skeleton (see module docstring)."""
+
+    family: str
+    source_joints: tuple[int | None, ...]
+    rotation_joints: tuple[int, ...]
+    position_points: tuple[int, ...]
+    num_source_joints: int
+
+    @property
+    def synthesized(self) -> tuple[str, ...]:
+        """Canonical joints with no source joint of their own."""
+        return tuple(
+            n for n, s in zip(CANONICAL_JOINTS, self.source_joints, strict=True) if s is None
+        )
+
+    def source_names(self, names: Sequence[str]) -> dict[str, str | None]:
+        """Canonical joint → source joint name (None when synthesised)."""
+        return {
+            c: None if s is None else names[s]
+            for c, s in zip(CANONICAL_JOINTS, self.source_joints, strict=True)
+        }
+
+
+def _is_ancestor(parents: Sequence[int], a: int, j: int) -> bool:
+    j = parents[j]
+    while j >= 0:
+        if j == a:
+            return True
+        j = parents[j]
+    return False
+
+
+def _consistent(found: dict[str, int], parents: Sequence[int]) -> bool:
+    """Distinct source joints whose ancestry agrees with the canonical tree."""
+    if len(set(found.values())) != len(found):
+        return False
+    for c, p in zip(CANONICAL_JOINTS, CANONICAL_PARENTS, strict=True):
+        if c not in found or p < 0:
+            continue
+        anc = p
+        while anc >= 0 and CANONICAL_JOINTS[anc] not in found:
+            anc = CANONICAL_PARENTS[anc]
+        if anc >= 0 and not _is_ancestor(parents, found[CANONICAL_JOINTS[anc]], found[c]):
+            return False
+    return True
+
+
+def _bind(family: str, found: dict[str, int], geo: TreeGeometry) -> JointMap:
+    num = len(geo.parents)
+    rot: dict[str, int] = {}
+    point: dict[str, int] = {}
+    for c, p in zip(CANONICAL_JOINTS, CANONICAL_PARENTS, strict=True):
+        if c in found:
+            rot[c] = point[c] = found[c]
+            continue
+        parent = CANONICAL_JOINTS[p]
+        if c in ("Spine1", "Spine2"):
+            rot[c], point[c] = rot[parent], point[parent]
+        elif c.endswith("Shoulder"):
+            rot[c], point[c] = rot["Spine2"], found[c.replace("Shoulder", "Arm")]
+        elif c.endswith("ToeBase"):
+            foot = found[c.replace("ToeBase", "Foot")]
+            rot[c] = foot
+            sites = [e for e, q in enumerate(geo.end_site_parents) if q == foot]
+            if sites:
+                dist = np.linalg.norm(geo.rest_end_sites[sites] - geo.rest_joints[foot], axis=-1)
+                point[c] = num + sites[int(np.argmax(dist))]
+            else:
+                point[c] = foot
+        else:  # a required joint: callers check those first
+            raise JointMappingError(f"required joint {c} is not mapped", missing=(c,))
+    return JointMap(
+        family=family,
+        source_joints=tuple(found.get(c) for c in CANONICAL_JOINTS),
+        rotation_joints=tuple(rot[c] for c in CANONICAL_JOINTS),
+        position_points=tuple(point[c] for c in CANONICAL_JOINTS),
+        num_source_joints=num,
+    )
+
+
+def map_joints(
+    names: Sequence[str],
+    geo: TreeGeometry,
+    *,
+    family: str | None = None,
+    path: str | Path | None = None,
+) -> JointMap:
+    """Map a source skeleton onto the canonical joints.
+
+    ``family`` forces a naming family (one of FAMILIES); by default the best-matching known
+    family is used, and the automatic topology mapping when no family names every required
+    joint. Raises JointMappingError listing the required joints that cannot be found.
+    """
+    names_t = tuple(names)
+    if family is not None and family not in FAMILIES:
+        raise JointMappingError(
+            f"unknown naming family {family!r}; use one of {', '.join(FAMILIES)}", path=path
+        )
+    ranked = []
+    for fam, table in nf.FAMILY_TABLES.items():
+        if family is not None and fam != family:
+            continue
+        found = nf.lookup(table, names_t)
+        required = sum(r in found for r in REQUIRED_JOINTS)
+        ranked.append(((required, len(found), nf.signature_hits(fam, names_t)), fam, found))
+    ranked.sort(key=lambda r: r[0], reverse=True)
+    for (required, _, _), fam, found in ranked:
+        if required == len(REQUIRED_JOINTS) and _consistent(found, geo.parents):
+            return _bind(fam, found, geo)
+    if family is None or family == nf.AUTOMATIC:
+        auto = auto_map(geo)
+        if all(r in auto.joints for r in REQUIRED_JOINTS) and _consistent(auto.joints, geo.parents):
+            return _bind(nf.AUTOMATIC, auto.joints, geo)
+        missing = tuple(r for r in REQUIRED_JOINTS if r not in auto.joints)
+    else:
+        missing = ()
+    if ranked:
+        best_missing = tuple(r for r in REQUIRED_JOINTS if r not in ranked[0][2])
+        if not missing or (best_missing and len(best_missing) < len(missing)):
+            missing = best_missing
+        lacks = ", ".join(best_missing) or "nothing, but its joints are not nested as a body"
+        hint = f"; the closest naming family, {ranked[0][1]}, lacks {lacks}"
+    else:
+        hint = ""
+    if not missing:
+        missing = REQUIRED_JOINTS
+    raise JointMappingError(
+        f"cannot map required canonical joints {', '.join(missing)} onto this skeleton{hint}. "
+        "Rename the joints after a supported family (CMU MotionBuilder, CMU ASF, DAZ, Mixamo) or "
+        "give the skeleton a recognisable hips / spine / two arms / two legs layout",
+        missing=missing,
+        path=path,
+    )

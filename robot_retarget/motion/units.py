@@ -1,0 +1,49 @@
+"""Length units of motion files, and telling them apart from a skeleton's standing height.
+
+BVH files carry no unit. A person is 1.4–2.0 m tall, so the unit whose scale puts the
+skeleton's standing height nearest to an adult's (1.7 m, compared on a log scale) is the unit
+the file was written in. Candidate scales are far enough apart (≥ ×2.2) for this to be
+unambiguous for adults and older children.
+"""
+
+from __future__ import annotations
+
+import math
+
+from robot_retarget.errors import MotionFormatError
+
+# CMU ASF length unit: the CMU FAQ gives 1 unit = (1/0.45) inch = 5.644 cm.
+CMU_UNIT_M = (1.0 / 0.45) * 0.0254
+
+UNIT_SCALES_M: dict[str, float] = {
+    "m": 1.0,
+    "cm": 0.01,
+    "mm": 0.001,
+    "inch": 0.0254,
+    "cmu": CMU_UNIT_M,
+}
+
+_TYPICAL_HEIGHT_M = 1.7
+
+
+def unit_scale_m(unit: str) -> float:
+    """Metres per file unit for a unit name (one of UNIT_SCALES_M)."""
+    try:
+        return UNIT_SCALES_M[unit]
+    except KeyError:
+        raise MotionFormatError(
+            f"unknown length unit {unit!r}; use one of {', '.join(UNIT_SCALES_M)}"
+        ) from None
+
+
+def detect_unit(height_file_units: float) -> str:
+    """The unit that makes a standing height (in file units) most like an adult's."""
+    if not (math.isfinite(height_file_units) and height_file_units > 0.0):
+        raise MotionFormatError(
+            f"cannot detect the length unit from a standing height of {height_file_units}; "
+            "pass the unit explicitly"
+        )
+    return min(
+        UNIT_SCALES_M,
+        key=lambda u: abs(math.log(height_file_units * UNIT_SCALES_M[u] / _TYPICAL_HEIGHT_M)),
+    )
