@@ -76,7 +76,18 @@ class SourceError(RetargetError):
 
 
 class ModelLoadError(RetargetError):
-    """A retargeting model or checkpoint could not be loaded."""
+    """A retargeting model or checkpoint could not be loaded: names the file and/or model."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: str | Path | None = None,
+        model: str | None = None,
+    ) -> None:
+        self.path = None if path is None else str(path)
+        self.model = model
+        super().__init__(f"{self.path}: {message}" if self.path is not None else message)
 
 
 class SolveError(RetargetError):
@@ -97,4 +108,19 @@ class ServoFaultError(HardwareError):
     def __init__(self, message: str, *, servo_id: int, bits: tuple[str, ...] = ()) -> None:
         self.servo_id = servo_id
         self.bits = bits
+        super().__init__(message)
+
+
+class ServoRangeError(RetargetError, ValueError):
+    """A joint angle (or tick value) lies outside what its servo can reach; never wrapped or
+    clamped silently. ``value`` is in the unit named by ``unit`` ("rad" or "tick") and
+    ``valid_range`` is the (low, high) interval in that unit."""
+
+    def __init__(
+        self, message: str, *, joint: str, value: float, valid_range: tuple[float, float], unit: str
+    ) -> None:
+        self.joint = joint
+        self.value = value
+        self.valid_range = valid_range
+        self.unit = unit
         super().__init__(message)
