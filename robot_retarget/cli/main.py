@@ -18,11 +18,9 @@ from robot_retarget.errors import RetargetError
 
 # (command name, module, one-line help). The help lives here too so --help needs no imports.
 COMMANDS: tuple[tuple[str, str, str], ...] = (
-    (
-        "inspect",
-        "robot_retarget.cli.inspect_cmd",
-        "Describe motion files: skeleton, mapping, fps, units.",
-    ),
+    ("inspect", "robot_retarget.cli.inspect_cmd", "Describe motion files: mapping, fps, units."),
+    ("doctor", "robot_retarget.cli.doctor_cmd", "Check a Dynamixel bus: ports, servos, latency."),
+    ("bench", "robot_retarget.cli.bench_cmd", "Speed benchmarks (median, p99): solve, loop, ..."),
 )
 
 

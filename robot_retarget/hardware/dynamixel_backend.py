@@ -1,0 +1,454 @@
+"""JointBackend for Dynamixel servos on one or more serial buses (dynamixel-sdk + pyserial).
+
+Per bus, each cycle is one Sync Write of goal positions and one read of the present-state block:
+Protocol 2.0 Sync Read (Fast Sync Read where every servo on the bus supports it); Protocol 1.0
+Bulk Read for MX servos and per-servo reads for the rest (AX-12A has no Bulk Read).
+
+Safety rules kept here (the SafetyLayer in front does the limit clamping):
+- connect(): ping every configured ID and compare the model number; set return delay time,
+  operating mode and profile velocity/acceleration; torque stays off.
+- Torque goes on only at the first send(): goal := present position, torque on, then a
+  velocity-limited ramp to the first command. Never a jump.
+- Torque off on disconnect(), on any exception inside send()/read_state(), and on SIGINT /
+  SIGTERM (handlers installed while connected, in the main thread only).
+- A servo hardware error (overload, overheating, input voltage, encoder, electrical shock)
+  raises ServoFaultError naming servo and bits; torque goes off and the stream stops.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import signal
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import FrameType
+from typing import Any
+
+import numpy as np
+
+from robot_retarget.errors import CommunicationError, HardwareError, ServoFaultError
+from robot_retarget.hardware import protocol as p
+from robot_retarget.hardware.backend import JointBackend
+from robot_retarget.hardware.bus import DynamixelBus, ReadResult
+from robot_retarget.hardware.control_table import (
+    ControlTable,
+    control_table,
+    decode_sign_magnitude,
+    error_bit_names,
+)
+from robot_retarget.hardware.types import FloatArray, IntArray, JointCommand, JointState
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.servo_models import servo_model
+from robot_retarget.robot.servo_units import ServoUnits
+
+_RPM2_PER_LSB = 214.577  # XM430 Profile Acceleration unit, rev/min²
+_MX_ACCEL_DEG_S2_PER_LSB = 8.583  # MX Goal Acceleration unit
+_POSITION_CONTROL_MODE = 3
+
+
+class ModelMismatchError(HardwareError):
+    """A servo answered with another model number than the config expects."""
+
+    def __init__(self, message: str, *, servo_id: int, expected: int, found: int) -> None:
+        self.servo_id = servo_id
+        self.expected = expected
+        self.found = found
+        super().__init__(message)
+
+
+class NotConnectedError(HardwareError):
+    """The backend is used before connect() or after disconnect() / a fault."""
+
+
+@dataclass
+class _BusGroup:
+    """The joints of one bus, and how to read them."""
+
+    name: str
+    bus: DynamixelBus
+    joint_index: list[int]  # into config.joints
+    ids: list[int]
+    tables: list[ControlTable]
+    fast: bool  # Protocol 2.0: Fast Sync Read
+    bulk_ids: list[int]  # Protocol 1.0: read by Bulk Read
+    single_ids: list[int]  # Protocol 1.0: read one by one
+
+
+class DynamixelBackend(JointBackend):
+    """Dynamixel robot on ``buses`` (bus name in the config → DynamixelBus, opened here)."""
+
+    def __init__(
+        self,
+        config: RobotConfig,
+        buses: Mapping[str, DynamixelBus],
+        *,
+        fast_sync_read: bool = True,
+        ramp_speed_fraction: float = 0.25,
+        handle_signals: bool = True,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        missing = [b.name for b in config.buses if b.name not in buses]
+        if missing:
+            raise HardwareError(
+                f"robot {config.name}: no DynamixelBus given for bus(es) {missing}; "
+                f"pass one per config bus: {[b.name for b in config.buses]}"
+            )
+        if not 0.0 < ramp_speed_fraction <= 1.0:
+            raise ValueError(f"ramp_speed_fraction must be in (0, 1], got {ramp_speed_fraction}")
+        self.config = config
+        self.units = ServoUnits(config)
+        self.ramp_speed_fraction = ramp_speed_fraction
+        self.handle_signals = handle_signals
+        self._sleep = sleep
+        self._groups: list[_BusGroup] = []
+        for bc in config.buses:
+            idx = [i for i, j in enumerate(config.joints) if j.bus == bc.name]
+            if not idx:
+                continue
+            tables = [control_table(config.joints[i].servo_model) for i in idx]
+            ids = [config.joints[i].servo_id for i in idx]
+            v2 = float(bc.protocol) == 2.0
+            self._groups.append(
+                _BusGroup(
+                    name=bc.name,
+                    bus=buses[bc.name],
+                    joint_index=idx,
+                    ids=ids,
+                    tables=tables,
+                    fast=v2 and fast_sync_read and all(t.fast_sync_read for t in tables),
+                    bulk_ids=[]
+                    if v2
+                    else [i for i, t in zip(ids, tables, strict=True) if t.bulk_read],
+                    single_ids=[]
+                    if v2
+                    else [i for i, t in zip(ids, tables, strict=True) if not t.bulk_read],
+                )
+            )
+        self._connected = False
+        self._torque_on = False
+        self._faulted: HardwareError | None = None
+        self._last_q: FloatArray | None = None
+        self._old_handlers: dict[int, Any] = {}
+        self.last_packets: dict[str, bytes] = {}  # bus name → last goal Sync Write sent
+
+    # ----- lifecycle -------------------------------------------------------------------------
+    @property
+    def connected(self) -> bool:
+        return self._connected
+
+    @property
+    def torque_on(self) -> bool:
+        return self._torque_on
+
+    def connect(self) -> None:
+        try:
+            for g in self._groups:
+                if not g.bus.is_open:
+                    g.bus.open()
+            self._check_models()
+            self._configure_servos()
+            state = self._read_state_raw()
+        except BaseException:
+            self._close_buses()
+            raise
+        self._last_q = state.q.copy()
+        self._connected = True
+        self._faulted = None
+        self._install_signal_handlers()
+
+    def disconnect(self) -> None:
+        try:
+            if self._connected and self._torque_on and self.config.hardware.torque_off_at_safe_pose:
+                # The torque goes off below whatever happens on the way to the safe pose.
+                with contextlib.suppress(HardwareError):
+                    self._ramp_to(self.config.safe_pose)
+            self.torque_off()
+        finally:
+            self._connected = False
+            self._restore_signal_handlers()
+            self._close_buses()
+
+    def _close_buses(self) -> None:
+        for g in self._groups:
+            g.bus.close()
+
+    # ----- connect-time checks -----------------------------------------------------------------
+    def _check_models(self) -> None:
+        for g in self._groups:
+            for i in g.joint_index:
+                joint = self.config.joints[i]
+                expected = servo_model(joint.servo_model).model_number
+                try:
+                    found, firmware = g.bus.ping_info(joint.servo_id)
+                except CommunicationError as exc:
+                    raise CommunicationError(
+                        f"servo ID {joint.servo_id} (joint {joint.name}) on bus {g.name} "
+                        f"({g.bus.port_name}) did not answer a ping: check its power, cable, ID "
+                        f"and baud rate ({g.bus.baud_rate}); {exc}"
+                    ) from exc
+                if found != expected:
+                    raise ModelMismatchError(
+                        f"servo ID {joint.servo_id} (joint {joint.name}) on bus {g.name} is "
+                        f"model number {found}, the config expects {expected} "
+                        f"({joint.servo_model}); fix the config or the servo ID",
+                        servo_id=joint.servo_id,
+                        expected=expected,
+                        found=found,
+                    )
+                table = control_table(joint.servo_model)
+                if g.fast and firmware < table.fast_sync_read_min_firmware:
+                    g.fast = False  # older firmware: plain Sync Read on this bus
+
+    def _write_checked(
+        self, g: _BusGroup, sid: int, table: ControlTable, name: str, value: int
+    ) -> None:
+        reg = table[name]
+        err = g.bus.write(sid, reg.address, p.le_bytes(value, reg.size))
+        if g.bus.protocol == 2.0:
+            if err & 0x80:
+                self._raise_fault(g, sid, table)
+            bad = err & 0x7F
+        else:
+            if err & 0x25:
+                self._raise_fault(g, sid, table, err)
+            bad = err & ~0x25
+        if bad:
+            raise HardwareError(
+                f"servo ID {sid} on bus {g.name} refused {name} = {value} (error 0x{err:02x}); "
+                "check the value range in the servo's e-Manual"
+            )
+
+    def _configure_servos(self) -> None:
+        hw = self.config.hardware
+        delay_units = min(254, round(hw.return_delay_us / 2.0))  # 2 µs per LSB
+        n = self.config.num_joints
+        speeds = (  # 0 = no profile limit on every model
+            np.zeros(n, dtype=np.int64)
+            if hw.profile_velocity_rad_s is None
+            else self.units.velocity_to_steps(np.full(n, hw.profile_velocity_rad_s))
+        )
+        for g in self._groups:
+            for sid, i, table in zip(g.ids, g.joint_index, g.tables, strict=True):
+                self._write_checked(g, sid, table, "torque_enable", 0)  # EEPROM needs torque off
+                self._write_checked(g, sid, table, "return_delay_time", delay_units)
+                if "operating_mode" in table:
+                    self._write_checked(g, sid, table, "operating_mode", _POSITION_CONTROL_MODE)
+                speed = int(speeds[i])
+                if "profile_velocity" in table:
+                    self._write_checked(g, sid, table, "profile_velocity", speed)
+                    accel = 0
+                    if hw.profile_acceleration_rad_s2 is not None:
+                        rev_min2 = hw.profile_acceleration_rad_s2 / (2 * math.pi) * 3600.0
+                        accel = max(1, math.ceil(rev_min2 / _RPM2_PER_LSB))
+                    self._write_checked(g, sid, table, "profile_acceleration", accel)
+                else:
+                    self._write_checked(g, sid, table, "moving_speed", speed)
+                    if "goal_acceleration" in table and hw.profile_acceleration_rad_s2:
+                        deg = math.degrees(hw.profile_acceleration_rad_s2)
+                        accel = min(254, max(1, math.ceil(deg / _MX_ACCEL_DEG_S2_PER_LSB)))
+                        self._write_checked(g, sid, table, "goal_acceleration", accel)
+
+    # ----- torque ------------------------------------------------------------------------------
+    def _sync_write_register(self, g: _BusGroup, name: str, values: Mapping[int, int]) -> bytes:
+        reg = g.tables[0][name]
+        return g.bus.sync_write(
+            reg.address, reg.size, {sid: p.le_bytes(v, reg.size) for sid, v in values.items()}
+        )
+
+    def torque_off(self) -> None:
+        """Best effort on every bus: a dead bus must not stop the others from switching off."""
+        for g in self._groups:
+            if not g.bus.is_open:
+                continue
+            for _ in range(2):  # Sync Write has no reply: send it twice
+                try:
+                    self._sync_write_register(g, "torque_enable", dict.fromkeys(g.ids, 0))
+                except HardwareError:
+                    break
+        self._torque_on = False
+
+    def _enable_torque_at_present(self) -> None:
+        state = self._read_state_raw()
+        ticks = self.units.to_ticks(state.q)
+        for g in self._groups:
+            self._write_goals(g, ticks)
+            self._sync_write_register(g, "torque_enable", dict.fromkeys(g.ids, 1))
+        self._torque_on = True
+        self._last_q = state.q.copy()
+
+    def _ramp_to(self, q_target: FloatArray) -> None:
+        """Velocity-limited move from the last goal to ``q_target`` at the control rate."""
+        if self._last_q is None:
+            return
+        speed = self.config.max_velocity * self.ramp_speed_fraction
+        if self.config.hardware.profile_velocity_rad_s is not None:
+            speed = np.minimum(speed, self.config.hardware.profile_velocity_rad_s)
+        dt_s = 1.0 / self.config.control_rate_hz
+        delta = np.asarray(q_target, dtype=np.float64) - self._last_q
+        duration_s = float(np.max(np.abs(delta) / speed))
+        steps = max(1, math.ceil(duration_s / dt_s))
+        start = self._last_q.copy()
+        t0 = time.monotonic()
+        for k in range(1, steps + 1):
+            q = start + delta * (k / steps)
+            self._send_now(q)
+            wait_s = t0 + k * dt_s - time.monotonic()
+            if wait_s > 0.0 and k < steps:
+                self._sleep(wait_s)
+
+    # ----- streaming ---------------------------------------------------------------------------
+    def _require_ready(self) -> None:
+        if self._faulted is not None:
+            raise NotConnectedError(
+                f"robot {self.config.name} stopped after a fault ({self._faulted}); fix it and "
+                "connect again"
+            )
+        if not self._connected:
+            raise NotConnectedError(f"robot {self.config.name}: connect() first")
+
+    def _write_goals(self, g: _BusGroup, ticks: IntArray) -> None:
+        reg = g.tables[0]["goal_position"]
+        values = {
+            sid: p.le_bytes(int(ticks[i]), reg.size)
+            for sid, i in zip(g.ids, g.joint_index, strict=True)
+        }
+        self.last_packets[g.name] = g.bus.sync_write(reg.address, reg.size, values)
+
+    def _send_now(self, q: FloatArray, ticks: IntArray | None = None) -> FloatArray:
+        if ticks is None:
+            ticks = self.units.to_ticks(q)
+        for g in self._groups:
+            self._write_goals(g, ticks)
+        sent = self.units.from_ticks(ticks)
+        self._last_q = np.asarray(q, dtype=np.float64).copy()
+        return sent
+
+    def send(self, cmd: JointCommand) -> JointCommand:
+        self._require_ready()
+        q = cmd.q
+        if q.shape != (self.config.num_joints,):
+            raise HardwareError(
+                f"command has {q.shape} values, robot {self.config.name} has "
+                f"{self.config.num_joints} joints"
+            )
+        if not np.all(np.isfinite(q)):
+            raise HardwareError(f"command contains NaN/inf ({q}); nothing was sent")
+        try:
+            ticks = self.units.to_ticks(q)  # range check before anything moves
+            if not self._torque_on:
+                self._enable_torque_at_present()
+                self._ramp_to(q)
+            sent = self._send_now(q, ticks)
+        except BaseException as exc:
+            self._stop_after(exc)
+            raise
+        return JointCommand(sent, cmd.t_s)
+
+    def read_state(self) -> JointState:
+        self._require_ready()
+        try:
+            return self._read_state_raw()
+        except BaseException as exc:
+            self._stop_after(exc)
+            raise
+
+    def _stop_after(self, exc: BaseException) -> None:
+        self.torque_off()
+        if isinstance(exc, HardwareError):
+            self._faulted = exc
+
+    # ----- reading -----------------------------------------------------------------------------
+    def _raise_fault(
+        self, g: _BusGroup, sid: int, table: ControlTable, bits: int | None = None
+    ) -> None:
+        if bits is None:  # Protocol 2.0: the alert bit says "look at Hardware Error Status"
+            reg = table["hardware_error_status"]
+            _, data = g.bus.read(sid, reg.address, reg.size)
+            bits = data[0] if data else 0
+        names = error_bit_names(bits, g.bus.protocol) or (f"0x{bits:02x}",)
+        joint = self.config.joints[g.joint_index[g.ids.index(sid)]].name
+        self.torque_off()
+        err = ServoFaultError(
+            f"servo ID {sid} (joint {joint}) on bus {g.name} reports a hardware error: "
+            f"{', '.join(names)}; torque is off. Check load, temperature and supply, then reboot "
+            "the servo (or power-cycle) before connecting again",
+            servo_id=sid,
+            bits=names,
+        )
+        self._faulted = err
+        raise err
+
+    def _read_group(self, g: _BusGroup) -> ReadResult:
+        t0 = g.tables[0]
+        if g.bus.protocol == 2.0:
+            addr, size = t0.block("present_load", "present_temperature")
+            return g.bus.sync_read(addr, size, g.ids, fast=g.fast)
+        addr, size = t0.block("present_position", "present_temperature")
+        out: ReadResult = {}
+        if g.bulk_ids:
+            out.update(g.bus.bulk_read([(sid, addr, size) for sid in g.bulk_ids]))
+        for sid in g.single_ids:
+            out[sid] = g.bus.read(sid, addr, size)
+        return out
+
+    def _read_state_raw(self) -> JointState:
+        n = self.config.num_joints
+        ticks = np.zeros(n, dtype=np.int64)
+        vel = np.zeros(n)
+        load = np.zeros(n)
+        temp = np.zeros(n)
+        herr = np.zeros(n, dtype=np.int64)
+        for g in self._groups:
+            result = self._read_group(g)
+            v2 = g.bus.protocol == 2.0
+            for sid, i, table in zip(g.ids, g.joint_index, g.tables, strict=True):
+                err, d = result[sid]
+                if v2 and err & 0x80:
+                    self._raise_fault(g, sid, table)
+                if not v2 and err & 0x25:
+                    self._raise_fault(g, sid, table, err)
+                if v2:  # block from Present Load (126)
+                    load_raw = int.from_bytes(d[0:2], "little", signed=True)
+                    vel_raw = int.from_bytes(d[2:6], "little", signed=True)
+                    ticks[i] = int.from_bytes(d[6:10], "little", signed=True)
+                    temp[i] = d[20]
+                else:  # block from Present Position (36)
+                    ticks[i] = d[0] | d[1] << 8
+                    vel_raw = decode_sign_magnitude(d[2] | d[3] << 8, 10)
+                    load_raw = decode_sign_magnitude(d[4] | d[5] << 8, 10)
+                    temp[i] = d[7]
+                direction = self.config.joints[i].direction
+                vel[i] = direction * vel_raw * table.velocity_unit_rad_s
+                load[i] = direction * load_raw / table.full_load
+        return JointState(
+            q=self.units.from_ticks(ticks),
+            velocity=vel,
+            load=load,
+            temperature=temp,
+            hardware_error=herr,
+            t_s=time.monotonic(),
+        )
+
+    # ----- signals -----------------------------------------------------------------------------
+    def _install_signal_handlers(self) -> None:
+        if not self.handle_signals or threading.current_thread() is not threading.main_thread():
+            return
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            self._old_handlers[signum] = signal.signal(signum, self._on_signal)
+
+    def _restore_signal_handlers(self) -> None:
+        for signum, handler in self._old_handlers.items():
+            signal.signal(signum, handler)
+        self._old_handlers.clear()
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self.torque_off()
+        self._connected = False
+        self._restore_signal_handlers()
+        self._close_buses()
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise SystemExit(128 + signum)

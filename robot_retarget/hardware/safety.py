@@ -1,0 +1,138 @@
+"""The safety layer in front of every backend: whatever upstream produced, only commands inside
+the joint limits and within ``v_max · dt`` of the previous command reach the servos.
+
+NaN/inf or a wrong shape raise :class:`UnsafeCommandError` and nothing is sent. Position and
+step clipping are counted per joint and summarised by :meth:`SafetyLayer.report`.
+``dt`` is the time since the previous command (from ``JointCommand.t_s``), never more than
+the config's control period, so bogus or jumping timestamps cannot loosen the step bound.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from robot_retarget.errors import HardwareError
+from robot_retarget.hardware.backend import JointBackend
+from robot_retarget.hardware.types import FloatArray, JointCommand, JointState
+from robot_retarget.robot.config import RobotConfig
+
+
+class UnsafeCommandError(HardwareError):
+    """A command that cannot be made safe (NaN, inf, wrong shape); nothing was sent."""
+
+    def __init__(self, message: str, *, joints: tuple[str, ...] = ()) -> None:
+        self.joints = joints
+        super().__init__(message)
+
+
+@dataclass
+class ClipStats:
+    """What the safety layer changed. Counts are joint-frames (one joint in one command)."""
+
+    commands: int = 0
+    commands_clipped: int = 0
+    position_clips: int = 0
+    step_clips: int = 0
+    max_position_excess_rad: float = 0.0
+    max_step_excess_rad: float = 0.0
+    per_joint: dict[str, int] = field(default_factory=dict)
+
+
+class SafetyLayer(JointBackend):
+    """Wraps ``backend`` (any JointBackend for ``config``) and clamps every command."""
+
+    def __init__(self, config: RobotConfig, backend: JointBackend) -> None:
+        self.config = config
+        self.backend = backend
+        self.lower = config.lower
+        self.upper = config.upper
+        self.max_velocity = config.max_velocity
+        self.period_s = 1.0 / config.control_rate_hz
+        self.stats = ClipStats(per_joint=dict.fromkeys(config.joint_names, 0))
+        self._prev_q: FloatArray | None = None
+        self._prev_t: float | None = None
+
+    @property
+    def connected(self) -> bool:
+        return self.backend.connected
+
+    def connect(self) -> None:
+        self.backend.connect()
+        state = self.backend.read_state()
+        self.reset(state.q)
+
+    def reset(self, q: FloatArray | None) -> None:
+        """Start the step bound from ``q`` (None: the next command only gets position clamping)."""
+        self._prev_q = None if q is None else np.clip(q, self.lower, self.upper)
+        self._prev_t = None
+
+    def disconnect(self) -> None:
+        self.backend.disconnect()
+
+    def read_state(self) -> JointState:
+        return self.backend.read_state()
+
+    def clamp(self, cmd: JointCommand) -> JointCommand:
+        """The safe version of ``cmd`` (updates the statistics; sends nothing)."""
+        q = cmd.q
+        names = self.config.joint_names
+        if q.shape != (len(names),):
+            raise UnsafeCommandError(
+                f"command has shape {q.shape}, robot {self.config.name} has {len(names)} joints; "
+                "nothing was sent"
+            )
+        bad = ~np.isfinite(q)
+        if np.any(bad):
+            joints = tuple(n for n, b in zip(names, bad, strict=True) if b)
+            raise UnsafeCommandError(
+                f"command has NaN/inf for joints {', '.join(joints)}; nothing was sent. Check "
+                "the retargeting stage's output",
+                joints=joints,
+            )
+        q_pos = np.clip(q, self.lower, self.upper)
+        q_safe = q_pos
+        if self._prev_q is not None:
+            dt = self.period_s
+            if self._prev_t is not None and cmd.t_s > self._prev_t:
+                dt = min(cmd.t_s - self._prev_t, self.period_s)
+            max_step = self.max_velocity * dt
+            q_safe = np.clip(q_pos, self._prev_q - max_step, self._prev_q + max_step)
+            q_safe = np.clip(q_safe, self.lower, self.upper)
+        pos_clipped = q_pos != q
+        step_clipped = q_safe != q_pos
+        s = self.stats
+        s.commands += 1
+        if np.any(pos_clipped) or np.any(step_clipped):
+            s.commands_clipped += 1
+            s.position_clips += int(pos_clipped.sum())
+            s.step_clips += int(step_clipped.sum())
+            s.max_position_excess_rad = max(
+                s.max_position_excess_rad, float(np.max(np.abs(q - q_pos)))
+            )
+            s.max_step_excess_rad = max(
+                s.max_step_excess_rad, float(np.max(np.abs(q_pos - q_safe)))
+            )
+            for n, c in zip(names, pos_clipped | step_clipped, strict=True):
+                if c:
+                    s.per_joint[n] += 1
+        self._prev_q = q_safe
+        self._prev_t = cmd.t_s
+        return JointCommand(q_safe, cmd.t_s)
+
+    def send(self, cmd: JointCommand) -> JointCommand:
+        return self.backend.send(self.clamp(cmd))
+
+    def report(self) -> str:
+        """One line per fact, for the CLI / logs."""
+        s = self.stats
+        worst = sorted(((c, n) for n, c in s.per_joint.items() if c), reverse=True)[:5]
+        lines = [
+            f"safety: {s.commands_clipped} of {s.commands} commands clipped "
+            f"({s.position_clips} joint limit clips, max excess {s.max_position_excess_rad:.4f} "
+            f"rad; {s.step_clips} velocity clips, max excess {s.max_step_excess_rad:.4f} rad)"
+        ]
+        if worst:
+            lines.append("most clipped: " + ", ".join(f"{n} ({c})" for c, n in worst))
+        return "\n".join(lines)

@@ -1,0 +1,188 @@
+"""One simulated Dynamixel servo: its control-table memory, access rules and motion.
+
+Memory is built from robot_retarget.hardware.control_table. Writes are checked like the real
+firmware does: read-only registers → access error, EEPROM while torque is on → access error,
+a goal position outside the position limits → data limit error (value ignored). Present
+position/velocity follow the goal through :class:`sim.kinematic.ServoDynamics` whenever torque
+is on, advanced lazily to the bus's clock when the servo is touched.
+"""
+
+from __future__ import annotations
+
+from robot_retarget.hardware.control_table import (
+    ControlTable,
+    Register,
+    control_table,
+)
+from robot_retarget.hardware.protocol import le_bytes
+from robot_retarget.robot.servo_models import servo_model
+from sim.kinematic import ServoDynamics
+
+# Status-packet error codes the servo can produce, protocol-neutral.
+OK = 0
+ACCESS_ERROR = 1
+DATA_LIMIT_ERROR = 2
+DATA_LENGTH_ERROR = 3
+
+
+class SimServo:
+    """A servo on the simulated bus. ``hardware_error`` holds injected fault bits (Protocol 2.0:
+    Hardware Error Status; Protocol 1.0: status error bits)."""
+
+    def __init__(self, servo_id: int, model: str, *, time_constant_s: float = 0.01) -> None:
+        self.servo_id = servo_id
+        self.model = servo_model(model)
+        self.table: ControlTable = control_table(model)
+        self.protocol = self.table.protocol
+        self.memory = bytearray(self.table.memory_size)
+        self._by_address: dict[int, Register] = {}
+        for reg in self.table.registers.values():
+            self._by_address[reg.address] = reg
+            self.memory[reg.address : reg.address + reg.size] = le_bytes(reg.default, reg.size)
+        self._put("id", servo_id)
+        self.hardware_error = 0
+        self.registered: tuple[int, bytes] | None = None
+        self.dynamics = ServoDynamics(
+            q_rad=0.0,
+            max_velocity_rad_s=self.model.no_load_speed_rad_s,
+            time_constant_s=time_constant_s,
+        )
+        self.writes = 0  # accepted write transactions (for tests)
+
+    # ----- registers -------------------------------------------------------------------------
+    def get(self, name: str) -> int:
+        reg = self.table[name]
+        return int.from_bytes(
+            self.memory[reg.address : reg.address + reg.size], "little", signed=reg.signed
+        )
+
+    def _put(self, name: str, value: int) -> None:
+        reg = self.table[name]
+        self.memory[reg.address : reg.address + reg.size] = le_bytes(value, reg.size)
+
+    @property
+    def torque_on(self) -> bool:
+        return self.get("torque_enable") != 0
+
+    def ticks_to_rad(self, ticks: float) -> float:
+        return (ticks - self.model.zero_tick) * self.model.rad_per_tick
+
+    def rad_to_ticks(self, q_rad: float) -> int:
+        return round(q_rad / self.model.rad_per_tick) + self.model.zero_tick
+
+    def set_present_rad(self, q_rad: float) -> None:
+        """Put the horn somewhere (e.g. where the robot was left): also the holding goal."""
+        self.dynamics.q_rad = q_rad
+        self._put("present_position", self.rad_to_ticks(q_rad))
+        self._put("goal_position", self.rad_to_ticks(q_rad))
+
+    def _position_limits(self) -> tuple[int, int]:
+        if self.protocol == 2.0:
+            if self.get("operating_mode") == 4:  # extended position: ±256 turns
+                return -1_048_575, 1_048_575
+            return self.get("min_position_limit"), self.get("max_position_limit")
+        return self.get("cw_angle_limit"), self.get("ccw_angle_limit")
+
+    def read(self, address: int, length: int) -> tuple[int, bytes]:
+        if length <= 0 or address < 0 or address + length > len(self.memory):
+            return ACCESS_ERROR, b""
+        return OK, bytes(self.memory[address : address + length])
+
+    def write(self, address: int, data: bytes) -> int:
+        """Write a byte span; all of it or nothing. Returns an error code."""
+        end = address + len(data)
+        if not data or address < 0 or end > len(self.memory):
+            return ACCESS_ERROR
+        regs = [r for a, r in self._by_address.items() if address <= a < end]
+        for reg in regs:
+            if reg.address + reg.size > end:
+                return DATA_LENGTH_ERROR  # would split a register
+            if not reg.writable:
+                return ACCESS_ERROR
+            if reg.eeprom and self.torque_on:
+                return ACCESS_ERROR  # EEPROM is locked while torque is on
+        if address not in self._by_address or not regs:
+            return ACCESS_ERROR
+        for reg in regs:
+            raw = data[reg.address - address : reg.address - address + reg.size]
+            value = int.from_bytes(raw, "little", signed=reg.signed)
+            if reg.name == "goal_position":
+                lo, hi = self._position_limits()
+                if not lo <= value <= hi:
+                    return DATA_LIMIT_ERROR
+        self.memory[address:end] = data  # a goal is stored; the horn moves only with torque on
+        self.writes += 1
+        return OK
+
+    # ----- motion ----------------------------------------------------------------------------
+    def _max_speed_rad_s(self) -> float:
+        speed_reg = "profile_velocity" if self.protocol == 2.0 else "moving_speed"
+        units = self.get(speed_reg) & 0x3FF if self.protocol == 1.0 else self.get(speed_reg)
+        if units == 0:
+            return self.model.no_load_speed_rad_s
+        return min(units * self.table.velocity_unit_rad_s, self.model.no_load_speed_rad_s)
+
+    def advance(self, dt_s: float) -> None:
+        """Move for ``dt_s`` seconds and refresh the present-state registers."""
+        if dt_s <= 0.0:
+            return
+        if self.torque_on and not self.hardware_error_latched:
+            self.dynamics.max_velocity_rad_s = self._max_speed_rad_s()
+            lo, hi = self._position_limits()
+            self.dynamics.lower_rad = self.ticks_to_rad(lo)
+            self.dynamics.upper_rad = self.ticks_to_rad(hi)
+            self.dynamics.step(self.ticks_to_rad(self.get("goal_position")), dt_s)
+        else:
+            self.dynamics.velocity_rad_s = 0.0
+        ticks = round(self.dynamics.q_rad / self.model.rad_per_tick) + self.model.zero_tick
+        self._put("present_position", ticks)
+        vel_units = round(self.dynamics.velocity_rad_s / self.table.velocity_unit_rad_s)
+        moving = int(abs(vel_units) > 0)
+        if self.protocol == 2.0:
+            self._put("present_velocity", vel_units)
+            self._put("hardware_error_status", self.hardware_error)
+        else:
+            magnitude = min(abs(vel_units), 1023)
+            self._put("present_speed", magnitude | (1024 if vel_units < 0 else 0))
+        self._put("moving", moving)
+
+    @property
+    def hardware_error_latched(self) -> bool:
+        return self.hardware_error != 0
+
+    def inject_hardware_error(self, bits: int) -> None:
+        """Latch fault bits; like the firmware's shutdown, torque goes off."""
+        self.hardware_error = bits
+        if bits:
+            self._put("torque_enable", 0)
+        if self.protocol == 2.0:
+            self._put("hardware_error_status", bits)
+
+    def reboot(self) -> None:
+        """Clears the hardware error and torque, as a reboot does."""
+        self.hardware_error = 0
+        self._put("torque_enable", 0)
+        if self.protocol == 2.0:
+            self._put("hardware_error_status", 0)
+
+    @property
+    def goal_rad(self) -> float:
+        return self.ticks_to_rad(self.get("goal_position"))
+
+    @property
+    def present_rad(self) -> float:
+        return self.dynamics.q_rad
+
+    def status_error_v1(self, code: int) -> int:
+        """Protocol 1.0 error byte for an instruction result plus latched hardware bits."""
+        bits = self.hardware_error & 0x25
+        if code == DATA_LIMIT_ERROR:
+            bits |= 0x02  # angle limit error
+        elif code in (ACCESS_ERROR, DATA_LENGTH_ERROR):
+            bits |= 0x08  # range error
+        return bits
+
+    def status_error_v2(self, code: int) -> int:
+        """Protocol 2.0 error field: an error number and the alert bit for hardware errors."""
+        number = {OK: 0, ACCESS_ERROR: 0x07, DATA_LIMIT_ERROR: 0x06, DATA_LENGTH_ERROR: 0x05}[code]
+        return number | (0x80 if self.hardware_error else 0)

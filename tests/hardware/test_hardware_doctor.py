@@ -1,0 +1,85 @@
+"""doctor: latency timer advice, bus check against the config, the CLI command."""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from robot_retarget.cli import doctor_cmd
+from robot_retarget.hardware import doctor
+from robot_retarget.robot.config import RobotConfig
+from sim.dxl_bus import SimulatedBus
+
+
+def test_latency_timer_read_and_advice(tmp_path: Path) -> None:
+    (tmp_path / "ttyUSB0").mkdir()
+    (tmp_path / "ttyUSB0" / "latency_timer").write_text("16\n")
+    assert doctor.latency_timer_ms("/dev/ttyUSB0", tmp_path) == 16
+    advice = doctor.latency_advice("/dev/ttyUSB0", 16, tmp_path)
+    assert "16 ms" in advice
+    assert "echo 1 | sudo tee" in advice
+    assert "udev" in advice
+    assert "good" in doctor.latency_advice("/dev/ttyUSB0", 1, tmp_path)
+    assert doctor.latency_timer_ms("/dev/ttyACM0", tmp_path) is None
+    assert "not an FTDI" in doctor.latency_advice("/dev/ttyACM0", None, tmp_path)
+
+
+def test_check_bus_finds_missing_unexpected_and_mismatched(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus]
+) -> None:
+    bus_cfg = op3.buses[0]
+    sim = op3_sim[bus_cfg.name]
+    missing = op3.joints[0].servo_id
+    del sim.servos[missing]
+    sim.servos[op3.joints[1].servo_id]._put("model_number", 1200)
+    report = doctor.check_bus(op3, bus_cfg, sim.port or "", cycles=20)
+    assert report.missing == [missing]
+    assert report.mismatched == [(op3.joints[1].servo_id, "XM430-W350", 1200)]
+    assert not report.ok
+    assert report.cycle is not None
+    assert report.cycle.runs == 20
+    assert "fast sync read" in report.cycle_mode
+    sim.settle()
+    assert not any(s.torque_on for s in sim.servos.values())  # nothing moved
+
+
+def test_doctor_command_reports_ok(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus], capsys: pytest.CaptureFixture[str]
+) -> None:
+    if op3.source_path is None:
+        pytest.skip("configs/robots/op3.yaml not available to the loader yet")
+    port = op3_sim[op3.buses[0].name].port
+    parser = argparse.ArgumentParser()
+    doctor_cmd.configure(parser)
+    code = doctor_cmd.run(
+        parser.parse_args(["--robot", "op3", "--port", port or "", "--cycles", "10"])
+    )
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert f"found {op3.num_joints} servo(s)" in out
+    assert "cycle" in out
+    assert "doctor: OK" in out
+
+
+def test_doctor_command_without_robot_lists_ports(capsys: pytest.CaptureFixture[str]) -> None:
+    parser = argparse.ArgumentParser()
+    doctor_cmd.configure(parser)
+    assert doctor_cmd.run(parser.parse_args([])) == 0
+    assert "serial ports:" in capsys.readouterr().out
+
+
+def test_model_names() -> None:
+    assert doctor.model_name(1020) == "XM430-W350"
+    assert doctor.model_name(9999) == "model 9999"
+
+
+def test_poppy_bus_check(poppy: RobotConfig, poppy_sim: dict[str, SimulatedBus]) -> None:
+    cfg = replace(poppy)
+    for bus_cfg in cfg.buses:
+        report = doctor.check_bus(cfg, bus_cfg, poppy_sim[bus_cfg.name].port or "", cycles=5)
+        assert report.ok
+        assert report.cycle is not None
+        assert len(report.found) == sum(j.bus == bus_cfg.name for j in cfg.joints)
