@@ -55,14 +55,18 @@ def _level_indices(
     pars: tuple[int, ...], device: torch.device
 ) -> tuple[tuple[Tensor, Tensor], ...]:
     """(joint indices, their parents' indices) per level below the root, built once per device
-    so a forward pass makes no host-to-device copies."""
-    return tuple(
-        (
-            torch.tensor(level, dtype=torch.long, device=device),
-            torch.tensor([pars[i] for i in level], dtype=torch.long, device=device),
+    so a forward pass makes no host-to-device copies.
+
+    Built outside inference mode: a cached inference tensor would break every later autograd
+    pass in the process (e.g. training after a validation run under ``inference_mode``)."""
+    with torch.inference_mode(False):
+        return tuple(
+            (
+                torch.tensor(level, dtype=torch.long, device=device),
+                torch.tensor([pars[i] for i in level], dtype=torch.long, device=device),
+            )
+            for level in _depth_levels(pars)[1:]
         )
-        for level in _depth_levels(pars)[1:]
-    )
 
 
 def _broadcasts_to(shape: tuple[int, ...], target: tuple[int, ...]) -> bool:

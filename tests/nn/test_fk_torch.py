@@ -244,3 +244,21 @@ def test_shape_errors(canonical: Skeleton) -> None:
         fk_torch.forward_kinematics(canonical, None, q, torch.zeros(5, 2, dtype=torch.float64))
     with pytest.raises(ValueError, match="root_pos"):
         fk_torch.forward_kinematics(canonical, None, q, torch.zeros(4, 3, dtype=torch.float64))
+
+
+def test_fk_trains_after_a_first_call_under_inference_mode() -> None:
+    """The per-level index cache must not hold inference tensors (regression): training with
+    learnable offsets after a validation pass under inference_mode used to fail."""
+    parents = (-1, 0, 1, 1, 3)
+    fk_torch._level_indices.cache_clear()  # the first build must happen in inference mode
+    with torch.inference_mode():
+        fk_torch.forward_kinematics(
+            parents, torch.ones(5, 3, dtype=torch.float64), torch.tensor([[1.0, 0, 0, 0]] * 5)
+        )
+    offsets = torch.ones(5, 3, dtype=torch.float64, requires_grad=True)
+    q = torch.tensor([[1.0, 0.1, 0, 0]] * 5, dtype=torch.float64, requires_grad=True)
+    pos, _ = fk_torch.forward_kinematics(parents, offsets, q)
+    pos.sum().backward()
+    assert q.grad is not None
+    assert offsets.grad is not None
+    assert torch.isfinite(offsets.grad).all()

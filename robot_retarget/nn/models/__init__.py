@@ -1,0 +1,24 @@
+"""Retargeting models behind one interface: copy baselines, NKN and PMnet.
+
+Import the registry for names → models (``from robot_retarget.nn.models.registry import
+build_model``); this file imports nothing, so one broken model never breaks the others.
+
+Where we deviate from (or fill gaps in) the papers, and why:
+
+- Features (both): velocities are *backward* differences (frame 0 is zero) so frame t needs no
+  future frame; heading = yaw of the hips' left-right axis; the target's root is integrated
+  from the source's first position and heading. Inputs are standardised with statistics fitted
+  from training data (``fit_normalization``); the papers do not give their normalisation.
+- Losses (both): ‖·‖² terms are summed over features and averaged over frames and batch, so
+  the published weights act per frame whatever the window length. The twist ("euler_y") is
+  measured about each joint's own bone axis (the direction to its first child; leaves use
+  their own bone), since our canonical bones are not all along y; the root is excluded. GAN
+  generator terms are the papers' saturating log(1 − D), computed from logits.
+- NKN: GRU widths, β, α, λ, ω, Adam 1e-4, clip 25 and the 0.3 balancing rule as published;
+  x̂_0 = 0; the discriminator's channel widths (64, 128, 256, 512) are ours (not published).
+- PMnet: Table 1 layer sizes, λ_p, λ_m, λ_r, α, dropout keep 0.8 as published; N_s = 1 (our
+  offsets are metres); "joints that affect the end effectors" read as each effector's own chain
+  (Shoulder…Hand, UpLeg…ToeBase, Neck…Head), trunk weight 1; F_M's convolutions are causal
+  (``causal_movement=True``) so the online path has no look-ahead; the mean-point trajectory is
+  taken relative to the window's first root position and heading.
+"""

@@ -1,0 +1,246 @@
+"""One optimisation step of NKN or PMnet with the papers' losses and weights.
+
+A ``train`` command only loops: draw a :class:`RetargetBatch`, call :func:`training_step`, log
+the returned losses. Both papers train with Adam, learning rate 1e-4, for generator and
+discriminator (:func:`make_optimizers`).
+
+NKN (eq. 10): cycle C + R + λ J + ω S with R the square loss ‖x̂_B − x_A‖² where B = A and
+β log(1 − r_B) otherwise (β = 0.001), twist J (α = 100°, λ = 10), smoothing S (ω = 0.01);
+generator gradients clipped to global norm 25; the discriminator is not updated while its
+mean probability of "real" on retargeted motion is below 0.3 (appendix E).
+
+PMnet (eq. 12): reconstruction (end-effector chains ×2) + λ_p perceptual pose (5) + λ_m
+motion discrimination (2) + λ_r rotation constraint (10, α = 100°).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from robot_retarget.nn.discriminators import NKNDiscriminator, PMnetDiscriminator
+from robot_retarget.nn.features import MotionFeatures, compute_features, local_positions
+from robot_retarget.nn.features import pmnet_scale as scale_of
+from robot_retarget.nn.losses import (
+    TWIST_ALPHA_RAD,
+    discriminator_loss,
+    end_effector_weights,
+    generator_adversarial_loss,
+    mean_point_trajectory,
+    perceptual_pose_loss,
+    reconstruction_loss,
+    squared_error,
+    twist_loss,
+    velocity_smoothing_loss,
+)
+from robot_retarget.nn.models.base import RetargetModel
+from robot_retarget.nn.models.batch import RetargetBatch
+from robot_retarget.nn.models.nkn import NKN
+from robot_retarget.nn.models.pmnet import PMnet
+
+Tensor = torch.Tensor
+
+LEARNING_RATE = 1e-4
+
+
+@dataclass(frozen=True)
+class Optimizers:
+    """The generator's (retargeting model's) and the discriminator's optimisers."""
+
+    generator: torch.optim.Optimizer
+    discriminator: torch.optim.Optimizer
+
+
+def make_optimizers(
+    model: nn.Module, discriminator: nn.Module, lr: float = LEARNING_RATE
+) -> Optimizers:
+    """Adam for both networks (both papers: learning rate 1e-4)."""
+    return Optimizers(
+        generator=torch.optim.Adam(model.parameters(), lr=lr),
+        discriminator=torch.optim.Adam(discriminator.parameters(), lr=lr),
+    )
+
+
+@dataclass(frozen=True)
+class NKNLossWeights:
+    """NKN's published hyper-parameters (section 4.2, appendix E)."""
+
+    beta: float = 0.001
+    twist_lambda: float = 10.0
+    twist_alpha_rad: float = TWIST_ALPHA_RAD
+    smoothing_omega: float = 0.01
+    grad_clip_norm: float = 25.0
+    disc_min_fake_prob: float = 0.3
+
+
+@dataclass(frozen=True)
+class PMnetLossWeights:
+    """PMnet's published hyper-parameters (section 3.3)."""
+
+    lambda_pose: float = 5.0
+    lambda_motion: float = 2.0
+    lambda_rot: float = 10.0
+    twist_alpha_rad: float = TWIST_ALPHA_RAD
+    end_effector_weight: float = 2.0
+
+
+def _detached(f: MotionFeatures) -> MotionFeatures:
+    return MotionFeatures(
+        local_pos=f.local_pos.detach(),
+        root_vel=f.root_vel.detach(),
+        local_quats=f.local_quats.detach(),
+        yaw=f.yaw.detach(),
+    )
+
+
+def _discriminator_update(
+    disc: nn.Module, opt: torch.optim.Optimizer, real: Tensor, fake: Tensor, mask: Tensor
+) -> tuple[float, float]:
+    """Loss and mean P(real | fake) on the masked samples (the update is the caller's call)."""
+    opt.zero_grad(set_to_none=True)
+    real_logits = disc(real)
+    fake_logits = disc(fake)
+    loss = discriminator_loss(real_logits, fake_logits)[mask].mean()
+    fake_prob = torch.sigmoid(fake_logits.detach())[mask].mean()
+    loss.backward()  # type: ignore[no-untyped-call]
+    return float(loss.detach()), float(fake_prob)
+
+
+def nkn_training_step(
+    model: NKN,
+    disc: NKNDiscriminator,
+    batch: RetargetBatch,
+    optimizers: Optimizers,
+    weights: NKNLossWeights | None = None,
+) -> dict[str, float]:
+    """One adversarial cycle-consistency step (NKN eq. 10); returns the loss terms."""
+    w = weights or NKNLossWeights()
+    model.train()
+    disc.train()
+    src = compute_features(batch.src_local_quats, batch.src_root_pos, batch.src_offsets)
+    init = batch.src_root_pos[:, 0]
+    out_b = model.retarget_features(src, init, batch.src_offsets, batch.tgt_offsets)
+    out_a = model.retarget_features(out_b.features, init, batch.tgt_offsets, batch.src_offsets)
+
+    same = batch.same_skeleton.to(torch.bool)
+    cycle = squared_error(out_a.features.x, src.x)
+    square = squared_error(out_b.features.x, src.x)
+    fake_logits = disc(NKNDiscriminator.inputs(out_b.features, batch.tgt_offsets))
+    adversarial = w.beta * generator_adversarial_loss(fake_logits)
+    r_term = torch.where(same, square, adversarial)
+    twist = w.twist_lambda * (
+        twist_loss(out_b.features.local_quats, batch.tgt_offsets, w.twist_alpha_rad)
+        + twist_loss(out_a.features.local_quats, batch.src_offsets, w.twist_alpha_rad)
+    )
+    smooth = w.smoothing_omega * (
+        velocity_smoothing_loss(out_b.features.root_vel)
+        + velocity_smoothing_loss(out_a.features.root_vel)
+    )
+    total = (cycle + r_term + twist + smooth).mean()
+    optimizers.generator.zero_grad(set_to_none=True)
+    total.backward()  # type: ignore[no-untyped-call]
+    nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
+    optimizers.generator.step()
+
+    losses = {
+        "total": float(total.detach()),
+        "cycle": float(cycle.detach().mean()),
+        "square": _masked_mean(square, same),
+        "adversarial": _masked_mean(adversarial, ~same),
+        "twist": float(twist.detach().mean()),
+        "smoothing": float(smooth.detach().mean()),
+    }
+    other = ~same
+    if bool(other.any()) and batch.real_local_quats is not None and batch.real_root_pos is not None:
+        real = compute_features(batch.real_local_quats, batch.real_root_pos, batch.tgt_offsets)
+        d_loss, fake_prob = _discriminator_update(
+            disc,
+            optimizers.discriminator,
+            NKNDiscriminator.inputs(real, batch.tgt_offsets),
+            NKNDiscriminator.inputs(_detached(out_b.features), batch.tgt_offsets),
+            other,
+        )
+        # Balancing (appendix E): let the generator catch up while the discriminator wins.
+        updated = fake_prob >= w.disc_min_fake_prob
+        if updated:
+            optimizers.discriminator.step()
+        losses.update(discriminator=d_loss, disc_fake_prob=fake_prob, disc_updated=float(updated))
+    return losses
+
+
+def pmnet_training_step(
+    model: PMnet,
+    disc: PMnetDiscriminator,
+    batch: RetargetBatch,
+    optimizers: Optimizers,
+    weights: PMnetLossWeights | None = None,
+) -> dict[str, float]:
+    """One PMnet step (eq. 12) and one discriminator step; returns the loss terms."""
+    w = weights or PMnetLossWeights()
+    model.train()
+    disc.train()
+    src = compute_features(batch.src_local_quats, batch.src_root_pos, batch.src_offsets)
+    out = model.retarget_features(
+        src, batch.src_root_pos[:, 0], batch.src_offsets, batch.tgt_offsets
+    )
+    q_a = out.extras["q_a"]
+    phi_a = out.extras["phi_a"]
+
+    joint_w = end_effector_weights(w.end_effector_weight).to(src.local_pos)
+    recon = reconstruction_loss(local_positions(q_a, batch.src_offsets), src.local_pos, joint_w)
+    phi_b = model.encode_pose(out.features.pose_flat)
+    pose = w.lambda_pose * perceptual_pose_loss(phi_a, phi_b)
+    fake_traj = mean_point_trajectory(
+        out.features.local_pos, out.features.root_vel, scale_of(batch.tgt_offsets)
+    )
+    motion = w.lambda_motion * generator_adversarial_loss(disc(fake_traj))
+    rot = w.lambda_rot * (
+        twist_loss(q_a, batch.src_offsets, w.twist_alpha_rad)
+        + twist_loss(out.features.local_quats, batch.tgt_offsets, w.twist_alpha_rad)
+    )
+    total = (recon + pose + motion + rot).mean()
+    optimizers.generator.zero_grad(set_to_none=True)
+    total.backward()  # type: ignore[no-untyped-call]
+    optimizers.generator.step()
+
+    real_traj = mean_point_trajectory(src.local_pos, src.root_vel, scale_of(batch.src_offsets))
+    everyone = torch.ones_like(batch.same_skeleton, dtype=torch.bool)
+    d_loss, fake_prob = _discriminator_update(
+        disc, optimizers.discriminator, real_traj, fake_traj.detach(), everyone
+    )
+    optimizers.discriminator.step()
+    return {
+        "total": float(total.detach()),
+        "reconstruction": float(recon.detach().mean()),
+        "pose": float(pose.detach().mean()),
+        "motion": float(motion.detach().mean()),
+        "rotation": float(rot.detach().mean()),
+        "discriminator": d_loss,
+        "disc_fake_prob": fake_prob,
+    }
+
+
+def training_step(
+    model: RetargetModel,
+    disc: nn.Module,
+    batch: RetargetBatch,
+    optimizers: Optimizers,
+) -> dict[str, float]:
+    """One step of whichever trainable model this is, with the paper's weights."""
+    if isinstance(model, NKN) and isinstance(disc, NKNDiscriminator):
+        return nkn_training_step(model, disc, batch, optimizers)
+    if isinstance(model, PMnet) and isinstance(disc, PMnetDiscriminator):
+        return pmnet_training_step(model, disc, batch, optimizers)
+    raise ValueError(
+        f"no training step for model {type(model).__name__} with discriminator "
+        f"{type(disc).__name__}; trainable pairs: NKN + NKNDiscriminator, PMnet + "
+        "PMnetDiscriminator (copy baselines have nothing to train)"
+    )
+
+
+def _masked_mean(values: Tensor, mask: Tensor) -> float:
+    if not bool(mask.any()):
+        return 0.0
+    return float(values.detach()[mask].mean())
