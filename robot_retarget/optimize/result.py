@@ -1,0 +1,40 @@
+"""What one solve returns: the command and how it was obtained."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+from robot_retarget.robot.config import FloatArray
+
+
+class SolveStatus(str, Enum):
+    """How the command in a SolveResult came about."""
+
+    OPTIMAL = "optimal"  # the solver converged; output checked against every hard limit
+    MAX_ITER = "max_iter"  # iteration cap hit; the (feasible, clipped) iterate is used
+    FALLBACK = "fallback"  # the solver failed; projection of the previous command is used
+
+
+@dataclass(frozen=True)
+class SolveResult:
+    """One frame's command (online) or one clip's commands (offline).
+
+    ``q`` is (J,) rad for a frame, (T, J) for a clip; it is always inside the joint limits and
+    the velocity box around the previous command (or moving toward the limits at ≤ v_max when
+    the previous command was outside them). ``max_violation`` is the largest violation of the
+    *solver's* constraints (twist bound, ground, rad or m) before clipping: 0 when satisfied.
+    """
+
+    status: SolveStatus
+    q: FloatArray = field(repr=False)
+    cost: float
+    iterations: int
+    solve_time_s: float
+    max_violation: float
+    used_fallback: bool
+    message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status is SolveStatus.OPTIMAL

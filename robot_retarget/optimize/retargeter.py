@@ -1,0 +1,479 @@
+"""The Retargeter: per-joint rotation wishes → servo angles within every hard limit.
+
+Two modes share one robot model:
+
+- :meth:`Retargeter.solve` (online): one frame, warm-started from the previous solution and
+  multipliers; a JIT-compiled SQP (exact Hessian, daqp) called through ``Function.buffer()``.
+- :meth:`Retargeter.solve_clip` (offline): a frame-by-frame pass seeds sliding windows of W
+  frames (overlap O) that are solved jointly with velocity/acceleration smoothness (Gauss–Newton
+  SQP, osqp); any clip length.
+
+Whatever the solver does, the returned command is projected onto the joint limits and the
+velocity box around the previous command and then checked; a failed solve falls back to that
+projection and says so (``SolveStatus.FALLBACK``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.errors import SolveError
+from robot_retarget.optimize.formulation import RobotProblem
+from robot_retarget.optimize.limits import box_violation, project_sequence, velocity_box
+from robot_retarget.optimize.result import SolveResult, SolveStatus
+from robot_retarget.optimize.settings import RetargetSettings
+from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver
+from robot_retarget.optimize.targets import ClipTargets, FrameTargets, check_array
+from robot_retarget.robot.config import FloatArray, RobotConfig
+
+_CONSTRAINT_TOL = 1e-6  # twist (rad) / ground (m) violation still called "satisfied"
+_NO_GROUND = 1e9  # lower bound for foot heights when the root height is unknown (m)
+
+
+@dataclass(frozen=True)
+class ClipTiming:
+    """Where an offline run spent its time (for benchmarks)."""
+
+    seed_time_s: float  # the frame-by-frame pass
+    window_times_s: tuple[float, ...]
+    window_frames: tuple[int, ...]  # frames committed by each window
+
+
+def _function_name(text: str) -> str:
+    """A valid casadi function name: letters, digits, single underscores."""
+    return re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]", "_", text)).strip("_")
+
+
+class Retargeter:
+    """Constrained retargeting for one robot; build once, call per frame or per clip.
+
+    ``jit``: compile the online solver (cached on disk in ``cache_dir``); falls back to the
+    interpreted solver when ``compiler`` (default gcc/cc) is missing or fails.
+    """
+
+    def __init__(
+        self,
+        config: RobotConfig,
+        *,
+        settings: RetargetSettings | None = None,
+        jit: bool = True,
+        cache_dir: str | Path | None = None,
+        compiler: str | None = None,
+    ) -> None:
+        self.config = config
+        self.problem = RobotProblem(config)
+        self.settings = settings or RetargetSettings.from_mapping(
+            config.retarget,
+            bone_names=tuple(b.canonical for b in self.problem.bones),
+            path=config.source_path,
+        )
+        self.lower = config.lower
+        self.upper = config.upper
+        self.max_velocity = config.max_velocity
+        self.num_joints = config.num_joints
+        self._cache_dir = None if cache_dir is None else Path(cache_dir)
+        self._compiler = compiler
+        self._online = self._build(1, "daqp", jit, hessian="exact")
+        self._offline: BufferedSolver | None = None  # built on first solve_clip
+        self._cost_fn: ca.Function | None = None
+        self._init_static(self._online, 1)
+        self.reset()
+
+    # ----------------------------------------------------------------- construction helpers
+    def _build(
+        self,
+        window: int,
+        qpsol: str,
+        jit: bool,
+        hessian: str = "gauss-newton",
+        max_iter: int | None = None,
+        tol_pr: float = 1e-9,
+        tol_du: float = 1e-7,
+    ) -> BufferedSolver:
+        nlp = self.problem.build_nlp(window)
+        spec = SolverSpec(
+            name=_function_name(f"retarget_{self.config.name}_w{window}_{qpsol}_{hessian}"),
+            qpsol=qpsol,
+            hessian=hessian,
+            max_iter=self.settings.max_iter if max_iter is None else max_iter,
+            tol_pr=tol_pr,
+            tol_du=tol_du,
+            jit=jit,
+            compiler=self._compiler,
+            cache_dir=self._cache_dir,
+        )
+        solver, jit_used = build_solver(spec, nlp)
+        return BufferedSolver(solver, jit_used)
+
+    def _init_static(self, s: BufferedSolver, window: int) -> None:
+        """Parameters and bounds that never change between calls."""
+        lay = self.problem.layout
+        st = self.settings
+        j = self.num_joints
+        for t in range(window):
+            o = t * lay.size
+            s.p[o + lay.w_dir.start : o + lay.w_dir.stop] = st.w_direction
+        shared = window * lay.size
+        s.p[shared + 2 * j : shared + 3 * j] = self.config.init_pose
+        s.p[shared + 3 * j + 1 : shared + 3 * j + 4] = (st.w_velocity, st.w_acceleration, st.w_init)
+        nb = len(self.problem.bones)
+        ng = self.problem.num_constraints_per_frame
+        alpha = np.array([st.twist_limit_rad(b.canonical) for b in self.problem.bones])
+        for t in range(window):
+            s.lbg[t * ng : t * ng + nb] = -alpha
+            s.ubg[t * ng : t * ng + nb] = alpha
+            s.lbg[t * ng + nb : (t + 1) * ng] = -_NO_GROUND
+            s.ubg[t * ng + nb : (t + 1) * ng] = np.inf
+
+    @property
+    def jit_used(self) -> bool:
+        """True when the online solver runs compiled code."""
+        return self._online.jit_used
+
+    @property
+    def bone_names(self) -> tuple[str, ...]:
+        """Canonical start joint of each mapped bone, in target order."""
+        return tuple(b.canonical for b in self.problem.bones)
+
+    @property
+    def end_effector_names(self) -> tuple[str, ...]:
+        return tuple(name for name, _ in self.problem.ee_frames)
+
+    @property
+    def q_prev(self) -> FloatArray:
+        """The last command (the velocity box of the next online solve is centred on it)."""
+        return self._q_prev.copy()
+
+    # ----------------------------------------------------------------- state
+    def reset(self, q: npt.ArrayLike | None = None) -> None:
+        """Forget the history; the next solve starts from ``q`` (default: the init pose).
+
+        ``q`` may lie outside the joint limits (a robot's measured pose): the following
+        commands then move it inside at ≤ v_max.
+        """
+        q0 = self.config.init_pose if q is None else q
+        start = check_array("start pose", q0, (self.num_joints,)).copy()
+        self._q_prev = start
+        self._q_prev2 = start.copy()
+        self._online.x0[:] = np.clip(start, self.lower, self.upper)
+        self._online.lam_x0[:] = 0.0
+        self._online.lam_g0[:] = 0.0
+
+    def warm_up(self, frames: int = 20) -> None:
+        """Run a few solves (page in code and caches) before real time; state is restored."""
+        saved = (self._q_prev.copy(), self._q_prev2.copy(), self._online.x0.copy())
+        dirs = self.bone_directions(self.config.init_pose)
+        for _ in range(frames):
+            self.solve(FrameTargets(directions=dirs), 1.0 / self.config.control_rate_hz)
+        self._q_prev, self._q_prev2 = saved[0], saved[1]
+        self._online.x0[:] = saved[2]
+        self._online.lam_x0[:] = 0.0
+        self._online.lam_g0[:] = 0.0
+
+    # ----------------------------------------------------------------- numeric FK helpers
+    def bone_directions(self, q: npt.ArrayLike) -> FloatArray:
+        """(B, 3) unit bone directions of the robot at ``q``, root frame."""
+        return np.asarray(self.problem.directions_function(np.asarray(q, dtype=float))).T.copy()
+
+    def bone_normals(self, q: npt.ArrayLike) -> FloatArray:
+        """(B, 3) unit bone normals of the robot at ``q`` (the orientation term's vectors)."""
+        return np.asarray(self.problem.normals_function(np.asarray(q, dtype=float))).T.copy()
+
+    def bone_twists(self, q: npt.ArrayLike) -> FloatArray:
+        """(B,) swing–twist twist angles (rad) of each bone's local rotation at ``q``."""
+        return np.asarray(self.problem.twists_function(np.asarray(q, dtype=float))).ravel()
+
+    def end_effector_positions(self, q: npt.ArrayLike) -> FloatArray:
+        """(E, 3) end-effector positions (m), root frame."""
+        return np.asarray(self.problem.ee_function(np.asarray(q, dtype=float))).T.copy()
+
+    # ----------------------------------------------------------------- targets → parameters
+    def _check_dt(self, dt_s: float) -> float:
+        try:
+            dt = float(dt_s)
+        except (TypeError, ValueError):
+            dt = math.nan
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise SolveError(f"dt_s must be a finite positive number of seconds, got {dt_s!r}")
+        return dt
+
+    def _write_frame(self, s: BufferedSolver, t: int, targets: FrameTargets) -> None:
+        """Validate one frame's targets and write them into parameter block t."""
+        lay = self.problem.layout
+        nb, ne = lay.num_bones, lay.num_ee
+        o = t * lay.size
+        p = s.p
+        p[o + lay.dirs.start : o + lay.dirs.stop] = check_array(
+            "target directions", targets.directions, (nb, 3)
+        ).ravel()
+        if targets.normals is None:
+            p[o + lay.w_ori.start : o + lay.w_ori.stop] = 0.0
+        else:
+            p[o + lay.normals.start : o + lay.normals.stop] = check_array(
+                "target normals", targets.normals, (nb, 3)
+            ).ravel()
+            p[o + lay.w_ori.start : o + lay.w_ori.stop] = self.settings.w_orientation
+        if ne:
+            if targets.ee_positions is None:
+                p[o + lay.w_ee.start : o + lay.w_ee.stop] = 0.0
+            else:
+                p[o + lay.ee.start : o + lay.ee.stop] = check_array(
+                    "end-effector targets", targets.ee_positions, (ne, 3)
+                ).ravel()
+                w = (
+                    np.ones(ne)
+                    if targets.ee_weights is None
+                    else check_array("end-effector weights", targets.ee_weights, (ne,))
+                )
+                p[o + lay.w_ee.start : o + lay.w_ee.stop] = self.settings.w_end_effector * w
+        elif targets.ee_positions is not None and np.size(targets.ee_positions):
+            raise SolveError(
+                f"robot {self.config.name} maps no end effectors, but targets were given"
+            )
+        ng = self.problem.num_constraints_per_frame
+        if self.problem.feet:
+            h = targets.root_height_m
+            if h is not None and not math.isfinite(h):
+                raise SolveError(f"root_height_m must be finite, got {h}; no command was produced")
+            s.lbg[t * ng + nb : (t + 1) * ng] = -_NO_GROUND if h is None else -h
+
+    def _write_history(self, s: BufferedSolver, window: int, dt_s: float) -> None:
+        j = self.num_joints
+        shared = window * self.problem.layout.size
+        s.p[shared : shared + j] = self._q_prev
+        s.p[shared + j : shared + 2 * j] = self._q_prev2
+        s.p[shared + 3 * j] = 1.0 / dt_s
+
+    def _constraint_violation(self, s: BufferedSolver) -> float:
+        if s.g.size == 0:
+            return 0.0
+        g = s.g
+        v = max(float(np.max(s.lbg - g)), float(np.max(g - s.ubg)), 0.0)
+        return v if math.isfinite(v) else math.inf
+
+    def _cost_at(self, s: BufferedSolver, x: FloatArray) -> float:
+        """Cost of a (fallback) point of the online problem."""
+        if self._cost_fn is None:
+            nlp = self.problem.build_nlp(1)
+            self._cost_fn = ca.Function("cost", [nlp["x"], nlp["p"]], [nlp["f"]])
+        return float(self._cost_fn(x, s.p))
+
+    # ----------------------------------------------------------------- online
+    def solve(
+        self, targets: FrameTargets, dt_s: float, *, q_prev: npt.ArrayLike | None = None
+    ) -> SolveResult:
+        """One frame. ``q_prev`` overrides the last command (e.g. a measured pose)."""
+        dt = self._check_dt(dt_s)
+        s = self._online
+        self._write_frame(s, 0, targets)  # validates before anything is solved
+        if q_prev is not None:
+            self._q_prev = check_array("q_prev", q_prev, (self.num_joints,)).copy()
+        lo, hi = velocity_box(self._q_prev, self.lower, self.upper, self.max_velocity * dt)
+        s.lbx[:] = lo
+        s.ubx[:] = hi
+        np.clip(s.x0, lo, hi, out=s.x0)
+        self._write_history(s, 1, dt)
+        t0 = time.perf_counter()
+        converged, iters, status_text = s.call()
+        elapsed = time.perf_counter() - t0
+        x = s.x
+        finite = bool(np.all(np.isfinite(x)))
+        violation = self._constraint_violation(s) if finite else math.inf
+        if finite and violation <= _CONSTRAINT_TOL:
+            status = SolveStatus.OPTIMAL if converged else SolveStatus.MAX_ITER
+            q = np.minimum(np.maximum(x, lo), hi)
+            cost = float(s.f[0])
+            s.lam_x0[:] = s.lam_x
+            s.lam_g0[:] = s.lam_g
+        else:
+            status = SolveStatus.FALLBACK
+            # Best feasible point: the iterate if it is a number, else the previous command,
+            # projected onto the merged box.
+            q = np.minimum(np.maximum(x if finite else self._q_prev, lo), hi)
+            cost = self._cost_at(s, q)
+            s.lam_x0[:] = 0.0
+            s.lam_g0[:] = 0.0
+        self._final_check(q, lo, hi)
+        self._q_prev2 = self._q_prev
+        self._q_prev = q
+        s.x0[:] = q
+        return SolveResult(
+            status=status,
+            q=q,
+            cost=cost,
+            iterations=iters,
+            solve_time_s=elapsed,
+            max_violation=violation,
+            used_fallback=status is SolveStatus.FALLBACK,
+            message="" if status is SolveStatus.OPTIMAL else status_text,
+        )
+
+    @staticmethod
+    def _final_check(q: FloatArray, lo: FloatArray, hi: FloatArray) -> None:
+        # Invariant of the projection above; checked because a servo is on the other side.
+        if not (np.all(np.isfinite(q)) and box_violation(q, lo, hi) == 0.0):
+            raise SolveError(
+                "internal error: projected command left its box; no command was produced"
+            )
+
+    # ----------------------------------------------------------------- offline
+    def solve_clip(
+        self,
+        targets: ClipTargets,
+        dt_s: float,
+        *,
+        q_start: npt.ArrayLike | None = None,
+    ) -> tuple[SolveResult, ClipTiming]:
+        """A whole clip; result ``q`` is (T, J), ``cost`` the sum of the window objectives.
+
+        First a frame-by-frame pass (the online solver) gives a feasible trajectory; then
+        windows of ``settings.window`` frames, overlapping by ``settings.overlap``, are solved
+        jointly from it (smoothness looks ahead as well as back) with a fixed budget of
+        ``settings.offline_max_iter`` SQP iterations, so ``MAX_ITER`` is the usual status: each
+        iteration lowers the window's cost from the feasible seed. A window whose result
+        violates a constraint keeps the frame-by-frame solution. ``q_start``: the pose before
+        the first frame (default: the init pose). The online state (``q_prev``) is untouched.
+        """
+        dt = self._check_dt(dt_s)
+        total = len(targets)
+        if total == 0:
+            raise SolveError("the clip has no frames; nothing to retarget")
+        j = self.num_joints
+        w = self.settings.window
+        commit_len = w - self.settings.overlap
+        q0 = self.config.init_pose if q_start is None else q_start
+        prev = check_array("q_start", q0, (j,)).copy()
+        for t in range(total):  # validate everything before solving anything
+            self._write_frame(self._online, 0, targets.frame(t))
+        s = self._offline_solver()
+        step = self.max_velocity * dt
+        ng = self.problem.num_constraints_per_frame
+        s.lbg[w * ng :] = np.tile(-step, w - 1)
+        s.ubg[w * ng :] = np.tile(step, w - 1)
+        t_seed = time.perf_counter()
+        seed, seed_status = self._online_pass(targets, dt, prev)
+        seed_time = time.perf_counter() - t_seed
+        out = np.empty((total, j))
+        status: list[SolveStatus] = [SolveStatus.OPTIMAL] * total
+        cost = 0.0
+        iterations = 0
+        worst = 0.0
+        kept = 0
+        times: list[float] = []
+        committed: list[int] = []
+        saved_prev, saved_prev2 = self._q_prev, self._q_prev2
+        self._q_prev, self._q_prev2 = prev, prev.copy()
+        try:
+            start = 0
+            while start < total:
+                n_real = min(w, total - start)
+                for t in range(w):  # pad a short last window by repeating its last frame
+                    self._write_frame(s, t, targets.frame(start + min(t, n_real - 1)))
+                self._write_history(s, w, dt)
+                for t in range(w):
+                    lo, hi = velocity_box(self._q_prev, self.lower, self.upper, step * (t + 1))
+                    s.lbx[t * j : (t + 1) * j] = lo
+                    s.ubx[t * j : (t + 1) * j] = hi
+                idx = np.minimum(np.arange(start, start + w), total - 1)
+                np.clip(seed[idx].ravel(), s.lbx, s.ubx, out=s.x0)
+                s.lam_x0[:] = 0.0
+                s.lam_g0[:] = 0.0
+                t0 = time.perf_counter()
+                converged, iters, _ = s.call()
+                times.append(time.perf_counter() - t0)
+                n_commit = n_real if start + w >= total else min(commit_len, n_real)
+                x = s.x.reshape(w, j)
+                violation = self._constraint_violation(s) if np.all(np.isfinite(x)) else math.inf
+                if violation <= _CONSTRAINT_TOL:
+                    cand = x[:n_commit]
+                    status[start : start + n_commit] = [
+                        SolveStatus.OPTIMAL if converged else SolveStatus.MAX_ITER
+                    ] * n_commit
+                    cost += float(s.f[0])
+                    worst = max(worst, violation)
+                else:  # keep the frame-by-frame solution (itself projected when it failed)
+                    kept += 1
+                    cand = seed[start : start + n_commit]
+                    status[start : start + n_commit] = seed_status[start : start + n_commit]
+                q = project_sequence(cand, self._q_prev, self.lower, self.upper, step)
+                out[start : start + n_commit] = q
+                iterations += iters
+                committed.append(n_commit)
+                self._q_prev2 = q[-2] if n_commit >= 2 else self._q_prev
+                self._q_prev = q[-1].copy()
+                start += n_commit
+        finally:
+            self._q_prev, self._q_prev2 = saved_prev, saved_prev2
+        self._check_sequence(out, prev, step)
+        fallbacks = status.count(SolveStatus.FALLBACK)
+        if fallbacks:
+            overall = SolveStatus.FALLBACK
+        elif SolveStatus.MAX_ITER in status:
+            overall = SolveStatus.MAX_ITER
+        else:
+            overall = SolveStatus.OPTIMAL
+        notes = []
+        if kept:
+            notes.append(f"{kept} of {len(committed)} windows kept the frame-by-frame solution")
+        if fallbacks:
+            notes.append(f"{fallbacks} frames fell back to the projected previous command")
+        result = SolveResult(
+            status=overall,
+            q=out,
+            cost=cost,
+            iterations=iterations,
+            solve_time_s=seed_time + float(sum(times)),
+            max_violation=worst,
+            used_fallback=fallbacks > 0,
+            message="; ".join(notes),
+        )
+        return result, ClipTiming(seed_time, tuple(times), tuple(committed))
+
+    def _offline_solver(self) -> BufferedSolver:
+        if self._offline is None:
+            st = self.settings
+            self._offline = self._build(
+                st.window,
+                "osqp",
+                jit=False,
+                hessian="gauss-newton",
+                max_iter=st.offline_max_iter,
+                tol_pr=1e-7,
+                tol_du=1e-4,
+            )
+            self._init_static(self._offline, st.window)
+        return self._offline
+
+    def _online_pass(
+        self, targets: ClipTargets, dt: float, start: FloatArray
+    ) -> tuple[FloatArray, list[SolveStatus]]:
+        """Frame-by-frame online solves (the windows' initial guess); online state kept."""
+        s = self._online
+        saved = (self._q_prev, self._q_prev2, s.x0.copy(), s.lam_x0.copy(), s.lam_g0.copy())
+        out = np.empty((len(targets), self.num_joints))
+        status: list[SolveStatus] = []
+        try:
+            self.reset(start)
+            for t in range(len(targets)):
+                r = self.solve(targets.frame(t), dt)
+                out[t] = r.q
+                status.append(r.status)
+        finally:
+            self._q_prev, self._q_prev2 = saved[0], saved[1]
+            s.x0[:], s.lam_x0[:], s.lam_g0[:] = saved[2], saved[3], saved[4]
+        return out, status
+
+    def _check_sequence(self, q: FloatArray, q_start: FloatArray, step: FloatArray) -> None:
+        prev = q_start
+        for t in range(q.shape[0]):
+            lo, hi = velocity_box(prev, self.lower, self.upper, step)
+            self._final_check(q[t], lo, hi)
+            prev = q[t]

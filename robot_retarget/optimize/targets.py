@@ -1,0 +1,174 @@
+"""Per-frame optimizer targets, and the adapter from canonical rotations to them.
+
+The optimizer works on what the evaluation scores: unit directions of the mapped bones (upper
+arm, forearm, thigh, shin, torso, …) in a **heading-free body frame** of the human — x forward,
+y left, z up, the heading taken from the hips' left–right axis — mapped into the robot root
+frame through its ``forward_axis`` / ``up_axis``. A bone's roll about itself comes in as a unit
+normal (the canonical rest normal carried by the bone's global rotation), optional end
+effectors as positions relative to the hips, scaled to the robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.errors import SolveError
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.optimize.formulation import RobotProblem
+from robot_retarget.robot.config import FloatArray
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
+from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
+
+
+@dataclass(frozen=True)
+class FrameTargets:
+    """Targets of one frame, robot root frame. B bones, E end effectors (robot config order).
+
+    ``normals`` None: no orientation term. ``ee_positions`` None: no end-effector term;
+    ``ee_weights`` (E,) scale each end effector (default 1). ``root_height_m``: height of the
+    root above the ground when known (enables the feet-above-ground constraint).
+    """
+
+    directions: FloatArray  # (B, 3) unit
+    normals: FloatArray | None = None  # (B, 3) unit
+    ee_positions: FloatArray | None = None  # (E, 3) m
+    ee_weights: FloatArray | None = None  # (E,)
+    root_height_m: float | None = None
+
+
+@dataclass(frozen=True)
+class ClipTargets:
+    """Targets of T frames, stacked: (T, B, 3), (T, B, 3), (T, E, 3), (T,)."""
+
+    directions: FloatArray
+    normals: FloatArray | None = None
+    ee_positions: FloatArray | None = None
+    ee_weights: FloatArray | None = None  # (E,), the same for every frame
+    root_height_m: FloatArray | None = None
+
+    def __len__(self) -> int:
+        return int(self.directions.shape[0])
+
+    def frame(self, t: int) -> FrameTargets:
+        return FrameTargets(
+            directions=self.directions[t],
+            normals=None if self.normals is None else self.normals[t],
+            ee_positions=None if self.ee_positions is None else self.ee_positions[t],
+            ee_weights=self.ee_weights,
+            root_height_m=None if self.root_height_m is None else float(self.root_height_m[t]),
+        )
+
+    def slice(self, start: int, stop: int) -> ClipTargets:
+        def cut(a: FloatArray | None) -> FloatArray | None:
+            return None if a is None else a[start:stop]
+
+        return ClipTargets(
+            directions=self.directions[start:stop],
+            normals=cut(self.normals),
+            ee_positions=cut(self.ee_positions),
+            ee_weights=self.ee_weights,
+            root_height_m=cut(self.root_height_m),
+        )
+
+
+def check_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> FloatArray:
+    """Float64 array of exactly ``shape`` with only finite entries, else SolveError."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != shape:
+        raise SolveError(f"{name} must have shape {shape}, got {a.shape}; no command was produced")
+    if not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))
+        raise SolveError(
+            f"{name} contains NaN or infinite values (first at index {tuple(bad[0])}); "
+            "no command was produced: check the upstream stage (network, motion source)"
+        )
+    return a
+
+
+def _unit_rows(v: FloatArray, fallback: FloatArray) -> FloatArray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    ok = n > 1e-9
+    return np.where(ok, v / np.where(ok, n, 1.0), fallback)
+
+
+def heading_frames(positions: FloatArray) -> FloatArray:
+    """(T, 3, 3) heading-free body frames of canonical global positions (T, 22, 3).
+
+    Columns: forward, left, up in canonical coordinates (Y up). Left is the hips' right→left
+    axis made horizontal; forward = left × up.
+    """
+    left = positions[:, Joint.LeftUpLeg] - positions[:, Joint.RightUpLeg]
+    left = left * np.array([1.0, 0.0, 1.0])
+    left = _unit_rows(left, np.array([1.0, 0.0, 0.0]))
+    up = np.broadcast_to(np.array([0.0, 1.0, 0.0]), left.shape)
+    fwd = np.cross(left, up)
+    return np.stack([fwd, left, up], axis=-1)
+
+
+def targets_from_rotations(
+    problem: RobotProblem,
+    skeleton: Skeleton,
+    local_quats: npt.ArrayLike,
+    *,
+    root_pos: npt.ArrayLike | None = None,
+    end_effectors: bool = False,
+    scale: float = 1.0,
+) -> ClipTargets:
+    """Targets from canonical local rotations (T, 22, 4) on ``skeleton`` (canonical joints).
+
+    ``skeleton`` should have the robot's proportions (the network's target skeleton);
+    ``scale`` further scales end-effector offsets (m per skeleton unit). Runs the skeleton's
+    FK, then :func:`targets_from_globals`.
+    """
+    if skeleton.names != CANONICAL_JOINTS:
+        raise SolveError(
+            "targets need a canonical skeleton (22 joints in canonical order); map the motion "
+            f"onto robot_retarget.skeleton.canonical first (got {len(skeleton.names)} joints)"
+        )
+    q = np.asarray(local_quats, dtype=np.float64)
+    if q.ndim != 3:
+        raise SolveError(f"local rotations must be (T, 22, 4), got shape {q.shape}")
+    q = check_array("local rotations", q, (q.shape[0], len(CANONICAL_JOINTS), 4))
+    pos, glob = forward_kinematics(skeleton, q, root_pos)
+    return targets_from_globals(problem, pos, glob, end_effectors=end_effectors, scale=scale)
+
+
+def targets_from_globals(
+    problem: RobotProblem,
+    positions: npt.ArrayLike,
+    global_quats: npt.ArrayLike,
+    *,
+    end_effectors: bool = False,
+    scale: float = 1.0,
+) -> ClipTargets:
+    """Targets from canonical global positions (T, 22, 3) and rotations (T, 22, 4).
+
+    For sources that already have them (a motion's ``positions()`` / ``global_quats()``).
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    if pos.ndim != 3:
+        raise SolveError(f"positions must be (T, 22, 3), got shape {pos.shape}")
+    frames = pos.shape[0]
+    pos = check_array("positions", pos, (frames, len(CANONICAL_JOINTS), 3))
+    glob = check_array("global rotations", global_quats, (frames, len(CANONICAL_JOINTS), 4))
+    body = heading_frames(pos)  # (T, 3, 3) canonical
+    # M_t = F · B_tᵀ: canonical → robot root frame, per frame.
+    m = np.einsum("ij,tkj->tik", problem.body_to_root, body)
+    starts = [CANONICAL_JOINTS.index(b.canonical) for b in problem.bones]
+    ends = [CANONICAL_JOINTS.index(b.canonical_end) for b in problem.bones]
+    carriers = [b.carrier_joint for b in problem.bones]
+    rest_axes = np.array([b.rest_axis for b in problem.bones])
+    dirs = _unit_rows(np.einsum("tij,tbj->tbi", m, pos[:, ends] - pos[:, starts]), rest_axes)
+    normals_c = np.array([problem.canonical_to_root.T @ b.rest_normal for b in problem.bones])
+    carried = quat.rotate(glob[:, carriers], normals_c[None])  # (T, B, 3) canonical
+    normals = _unit_rows(np.einsum("tij,tbj->tbi", m, carried), rest_axes)
+    ee = None
+    if end_effectors and problem.ee_frames:
+        hips = 0.5 * (pos[:, Joint.LeftUpLeg] + pos[:, Joint.RightUpLeg])
+        idx = [CANONICAL_JOINTS.index(name) for name, _ in problem.ee_frames]
+        rel = (pos[:, idx] - hips[:, None]) * scale
+        ee = problem.hip_center + np.einsum("tij,tej->tei", m, rel)
+    return ClipTargets(directions=dirs, normals=normals, ee_positions=ee)

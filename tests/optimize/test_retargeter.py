@@ -1,0 +1,421 @@
+"""Acceptance tests of the Retargeter: hard limits, recovery, twist bound, safe failure."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from robot_retarget.errors import SolveError
+from robot_retarget.optimize import ClipTargets, FrameTargets, Retargeter, SolveStatus
+from robot_retarget.robot.config import RobotConfig
+
+TwistArmFactory = Callable[[dict[str, float]], RobotConfig]
+
+_EXACT = 1e-12  # rad: the only slack allowed on a hard limit
+
+
+def _angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
+
+
+def _random_units(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
+    v = rng.normal(size=(n, 3)) * scale
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+# --------------------------------------------------------------------------- hard limits
+@settings(max_examples=40)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    dt_s=st.floats(1e-3, 0.2),
+    unreachable=st.booleans(),
+)
+def test_every_output_inside_limits_and_velocity_box(
+    op3_retargeter: Retargeter, seed: int, dt_s: float, unreachable: bool
+) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    rng = np.random.default_rng(seed)
+    q_prev = rng.uniform(cfg.lower, cfg.upper)
+    r.reset(q_prev)
+    nb = len(r.bone_names)
+    for _ in range(3):
+        if unreachable:  # any directions at all, normals opposite to them, far end effectors
+            dirs = _random_units(rng, nb, 1.0)
+            targets = FrameTargets(
+                dirs,
+                -dirs,
+                ee_positions=rng.normal(size=(len(r.end_effector_names), 3)) * 10.0,
+                root_height_m=float(rng.uniform(-1.0, 0.0)),
+            )
+        else:
+            q = rng.uniform(cfg.lower, cfg.upper)
+            targets = FrameTargets(r.bone_directions(q), r.bone_normals(q))
+        res = r.solve(targets, dt_s)
+        step = cfg.max_velocity * dt_s
+        assert np.all(res.q >= cfg.lower - _EXACT)
+        assert np.all(res.q <= cfg.upper + _EXACT)
+        assert np.all(np.abs(res.q - q_prev) <= step + _EXACT)
+        q_prev = res.q
+
+
+@settings(max_examples=25)
+@given(seed=st.integers(0, 2**32 - 1), dt_s=st.floats(1e-3, 0.2))
+def test_twist_bound_and_limits_hold_for_unreachable_targets(
+    twist_retargeter: Retargeter, seed: int, dt_s: float
+) -> None:
+    r = twist_retargeter
+    cfg = r.config
+    rng = np.random.default_rng(seed)
+    q_prev = rng.uniform(cfg.lower, cfg.upper) * 0.3  # twists inside the bound to start with
+    r.reset(q_prev)
+    nb = len(r.bone_names)
+    for _ in range(3):
+        res = r.solve(FrameTargets(_random_units(rng, nb, 1.0), _random_units(rng, nb, 1.0)), dt_s)
+        assert np.all(res.q >= cfg.lower - _EXACT)
+        assert np.all(res.q <= cfg.upper + _EXACT)
+        assert np.all(np.abs(res.q - q_prev) <= cfg.max_velocity * dt_s + _EXACT)
+        if not res.used_fallback:
+            assert np.all(np.abs(r.bone_twists(res.q)) <= math.radians(100.0) + 1e-6)
+        q_prev = res.q
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_targets_raise_and_produce_no_command(
+    op3_retargeter: Retargeter, bad: float
+) -> None:
+    r = op3_retargeter
+    r.reset()
+    before = r.q_prev
+    dirs = r.bone_directions(r.config.init_pose)
+    dirs[3, 1] = bad
+    with pytest.raises(SolveError, match="NaN or infinite"):
+        r.solve(FrameTargets(dirs), 0.01)
+    normals = r.bone_normals(r.config.init_pose)
+    normals[0, 0] = bad
+    with pytest.raises(SolveError, match="NaN or infinite"):
+        r.solve(FrameTargets(r.bone_directions(r.config.init_pose), normals), 0.01)
+    np.testing.assert_array_equal(r.q_prev, before)
+
+
+@pytest.mark.parametrize("dt_s", [0.0, -0.01, math.nan, math.inf])
+def test_bad_dt_raises(op3_retargeter: Retargeter, dt_s: float) -> None:
+    dirs = op3_retargeter.bone_directions(op3_retargeter.config.init_pose)
+    with pytest.raises(SolveError, match="dt_s"):
+        op3_retargeter.solve(FrameTargets(dirs), dt_s)
+
+
+def test_wrong_target_shape_raises(op3_retargeter: Retargeter) -> None:
+    with pytest.raises(SolveError, match="shape"):
+        op3_retargeter.solve(FrameTargets(np.ones((3, 3))), 0.01)
+
+
+# --------------------------------------------------------------------------- recovery
+def test_recovers_fk_targets_of_random_feasible_angles(op3_retargeter: Retargeter) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    rng = np.random.default_rng(7)
+    errors = []
+    for _ in range(40):
+        q = rng.uniform(cfg.lower, cfg.upper)
+        targets = FrameTargets(r.bone_directions(q), r.bone_normals(q))
+        r.reset()
+        res = r.solve(targets, 10.0)  # dt large: the velocity box does not bind
+        errors.append(_angles_deg(r.bone_directions(res.q), targets.directions))
+    assert float(np.median(errors)) < 0.5
+
+
+def test_tracks_a_smooth_feasible_trajectory(op3_retargeter: Retargeter) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    t = np.linspace(0.0, 2.0, 200)[:, None]
+    mid = 0.5 * (cfg.lower + cfg.upper)
+    half = 0.4 * (cfg.upper - cfg.lower)
+    traj = mid + half * np.sin(2.0 * np.pi * 0.5 * t + np.arange(cfg.num_joints))
+    r.reset(traj[0])
+    errors = []
+    for q in traj[1:]:
+        res = r.solve(FrameTargets(r.bone_directions(q), r.bone_normals(q)), 0.01)
+        assert res.status is SolveStatus.OPTIMAL
+        errors.append(_angles_deg(r.bone_directions(res.q), r.bone_directions(q)))
+    assert float(np.median(errors)) < 0.5
+
+
+# --------------------------------------------------------------------------- twist bound
+def test_forearm_twisted_150_deg_comes_back_within_alpha(twist_retargeter: Retargeter) -> None:
+    r = twist_retargeter
+    cfg = r.config
+    q = np.zeros(cfg.num_joints)
+    q[cfg.joint_index("l_el")] = -0.5
+    q[cfg.joint_index("l_fore_roll")] = math.radians(150.0)
+    fore = r.bone_names.index("LeftForeArm")
+    assert math.degrees(r.bone_twists(q)[fore]) == pytest.approx(150.0, abs=1e-6)
+    targets = FrameTargets(r.bone_directions(q), r.bone_normals(q))
+    r.reset()
+    for _ in range(10):
+        res = r.solve(targets, 0.1)
+    alpha = r.settings.twist_limit_rad("LeftForeArm")
+    twists = r.bone_twists(res.q)
+    assert np.all(np.abs(twists) <= alpha + 1e-6)
+    # It twists as far as allowed, towards the target.
+    assert twists[fore] == pytest.approx(alpha, abs=math.radians(1.0))
+    assert res.status is SolveStatus.OPTIMAL
+
+
+def test_per_bone_twist_override(twist_arm_factory: TwistArmFactory) -> None:
+    cfg = twist_arm_factory({"twist_limit_deg.LeftForeArm": 30.0})
+    r = Retargeter(cfg, jit=False)
+    q = np.zeros(cfg.num_joints)
+    q[cfg.joint_index("l_fore_roll")] = math.radians(90.0)
+    q[cfg.joint_index("r_fore_roll")] = math.radians(90.0)
+    targets = FrameTargets(r.bone_directions(q), r.bone_normals(q))
+    for _ in range(10):
+        res = r.solve(targets, 0.1)
+    twists = np.degrees(r.bone_twists(res.q))
+    assert twists[r.bone_names.index("LeftForeArm")] == pytest.approx(30.0, abs=1.0)
+    assert twists[r.bone_names.index("RightForeArm")] == pytest.approx(90.0, abs=1.0)
+
+
+# --------------------------------------------------------------------------- safe failure
+def test_start_outside_limits_moves_inside_at_max_velocity(op3_retargeter: Retargeter) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    dt = 0.01
+    step = cfg.max_velocity * dt
+    start = cfg.init_pose.copy()
+    start[0] = cfg.upper[0] + 0.3  # above the upper limit
+    start[5] = cfg.lower[5] - 0.2  # below the lower limit
+    r.reset(start)
+    targets = FrameTargets(r.bone_directions(cfg.init_pose), r.bone_normals(cfg.init_pose))
+    prev = start
+    for _ in range(200):
+        q = r.solve(targets, dt).q
+        assert np.all(np.abs(q - prev) <= step + _EXACT)
+        # Never further outside than before, and closer by a full step while outside.
+        for i in (0, 5):
+            out_before = max(prev[i] - cfg.upper[i], cfg.lower[i] - prev[i], 0.0)
+            out_now = max(q[i] - cfg.upper[i], cfg.lower[i] - q[i], 0.0)
+            assert out_now <= max(out_before - step[i], 0.0) + _EXACT
+        prev = q
+    assert np.all(prev >= cfg.lower)
+    assert np.all(prev <= cfg.upper)
+
+
+def test_infeasible_twist_bound_falls_back_to_projection(op3: RobotConfig) -> None:
+    # α = 0 on every bone: the init pose's upper-arm twist (≈ 15°) cannot reach 0 in one
+    # 1 ms step, so the solve fails and the projection is used.
+    cfg = dataclasses.replace(op3, retarget={"twist_limit_deg": 0.0})
+    r = Retargeter(cfg, jit=False)
+    dt = 1e-3
+    targets = FrameTargets(r.bone_directions(cfg.init_pose))
+    res = r.solve(targets, dt)
+    assert res.status is SolveStatus.FALLBACK
+    assert res.used_fallback
+    assert res.max_violation > 0.0
+    assert np.all(np.abs(res.q - cfg.init_pose) <= cfg.max_velocity * dt + _EXACT)
+    assert np.all(res.q >= cfg.lower)
+    assert np.all(res.q <= cfg.upper)
+    assert math.isfinite(res.cost)
+
+
+def test_result_reports_solver_facts(op3_retargeter: Retargeter) -> None:
+    r = op3_retargeter
+    r.reset()
+    q = r.config.init_pose + 0.05
+    res = r.solve(FrameTargets(r.bone_directions(q), r.bone_normals(q)), 0.02)
+    assert res.ok
+    assert not res.used_fallback
+    assert res.iterations >= 1
+    assert 0.0 < res.solve_time_s < 1.0
+    assert res.max_violation <= 1e-6
+    assert res.cost >= 0.0
+    assert res.q.shape == (r.num_joints,)
+
+
+# --------------------------------------------------------------------------- JIT and cache
+def test_no_compiler_falls_back_to_interpreted_solver(
+    twist_arm: RobotConfig, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    with caplog.at_level(logging.WARNING):
+        r = Retargeter(twist_arm, cache_dir=tmp_path, compiler="no-such-cc-for-robot-retarget")
+    assert not r.jit_used
+    assert "no C compiler" in caplog.text
+    assert not list(tmp_path.iterdir())
+    q = np.full(twist_arm.num_joints, 0.2)
+    res = r.solve(FrameTargets(r.bone_directions(q), r.bone_normals(q)), 1.0)
+    assert res.ok
+    assert float(np.max(_angles_deg(r.bone_directions(res.q), r.bone_directions(q)))) < 0.5
+
+
+def test_compiled_solver_is_cached_on_disk(twist_arm: RobotConfig, cache_dir: Path) -> None:
+    first = Retargeter(twist_arm, cache_dir=cache_dir)
+    files = sorted(p.name for p in cache_dir.iterdir())
+    assert any(name.endswith(".casadi") for name in files)
+    second = Retargeter(twist_arm, cache_dir=cache_dir, compiler="no-such-cc-for-robot-retarget")
+    assert first.jit_used
+    assert second.jit_used
+    assert sorted(p.name for p in cache_dir.iterdir()) == files
+    q = np.full(twist_arm.num_joints, -0.1)
+    targets = FrameTargets(first.bone_directions(q), first.bone_normals(q))
+    np.testing.assert_allclose(first.solve(targets, 1.0).q, second.solve(targets, 1.0).q)
+
+
+# --------------------------------------------------------------------------- offline
+@settings(max_examples=5)
+@given(
+    frames=st.integers(1, 40),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_offline_clip_respects_limits_for_any_length(
+    op3_retargeter: Retargeter, frames: int, seed: int
+) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    rng = np.random.default_rng(seed)
+    nb = len(r.bone_names)
+    dirs = np.stack([_random_units(rng, nb, 1.0) for _ in range(frames)])
+    dt = 1.0 / 120.0
+    start = rng.uniform(cfg.lower, cfg.upper)
+    res, timing = r.solve_clip(ClipTargets(dirs), dt, q_start=start)
+    assert res.q.shape == (frames, cfg.num_joints)
+    assert sum(timing.window_frames) == frames
+    prev = start
+    for q in res.q:
+        assert np.all(q >= cfg.lower - _EXACT)
+        assert np.all(q <= cfg.upper + _EXACT)
+        assert np.all(np.abs(q - prev) <= cfg.max_velocity * dt + _EXACT)
+        prev = q
+
+
+def test_offline_recovers_a_smooth_trajectory_and_keeps_online_state(
+    op3_retargeter: Retargeter,
+) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    t = np.linspace(0.0, 1.0, 60)[:, None]
+    traj = cfg.init_pose + 0.3 * np.sin(2.0 * np.pi * t + np.arange(cfg.num_joints))
+    traj = np.clip(traj, cfg.lower, cfg.upper)
+    dirs = np.stack([r.bone_directions(q) for q in traj])
+    normals = np.stack([r.bone_normals(q) for q in traj])
+    r.reset()
+    before = r.q_prev
+    res, _ = r.solve_clip(ClipTargets(dirs, normals), 1.0 / 60.0, q_start=traj[0])
+    np.testing.assert_array_equal(r.q_prev, before)
+    err = _angles_deg(np.stack([r.bone_directions(q) for q in res.q]), dirs)
+    assert float(np.median(err)) < 0.5
+    assert not res.used_fallback
+
+
+def test_offline_rejects_non_finite_targets_before_solving(op3_retargeter: Retargeter) -> None:
+    r = op3_retargeter
+    dirs = np.stack([r.bone_directions(r.config.init_pose)] * 5)
+    dirs[4, 0, 0] = math.nan
+    with pytest.raises(SolveError, match="NaN"):
+        r.solve_clip(ClipTargets(dirs), 0.01)
+    with pytest.raises(SolveError, match="no frames"):
+        r.solve_clip(ClipTargets(dirs[:0]), 0.01)
+
+
+# --------------------------------------------------------------------------- optional terms
+def test_feet_stay_above_the_ground_when_the_root_height_is_known(
+    op3_retargeter: Retargeter,
+) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    straight = np.zeros(cfg.num_joints)  # legs straight: the toes 0.26 m below the root
+    targets = FrameTargets(r.bone_directions(straight), root_height_m=0.2)
+    r.reset()
+    for _ in range(100):
+        res = r.solve(targets, 0.02)
+    heights = np.asarray(r.problem.feet_function(res.q)).ravel()
+    assert np.all(heights >= -0.2 - 1e-6)
+    assert float(np.min(heights)) == pytest.approx(-0.2, abs=1e-3)  # as low as allowed
+    free = r.solve(FrameTargets(targets.directions), 0.02)  # height unknown: no constraint
+    for _ in range(100):
+        free = r.solve(FrameTargets(targets.directions), 0.02)
+    assert float(np.min(np.asarray(r.problem.feet_function(free.q)))) < -0.21
+
+
+def test_end_effector_targets_are_tracked(op3_retargeter: Retargeter) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    rng = np.random.default_rng(11)
+    q = np.clip(cfg.init_pose + rng.normal(scale=0.3, size=cfg.num_joints), cfg.lower, cfg.upper)
+    ee = r.end_effector_positions(q)
+    wrong_dirs = r.bone_directions(cfg.init_pose)  # directions disagree; positions decide
+    targets = FrameTargets(wrong_dirs, ee_positions=ee, ee_weights=np.full(len(ee), 50.0))
+    r.reset()
+    for _ in range(50):
+        res = r.solve(targets, 0.05)
+    err = np.linalg.norm(r.end_effector_positions(res.q) - ee, axis=1)
+    assert float(np.median(err)) < 0.01
+
+
+def test_poppy_recovers_poses_around_its_init_pose(poppy: RobotConfig) -> None:
+    # Poppy's 5-joint spine makes far-away poses need many SQP iterations (and admit local
+    # minima) from the init pose: here, poses within ≈ 17° per joint of it, a few online steps.
+    r = Retargeter(poppy, jit=False)
+    rng = np.random.default_rng(2)
+    errors = []
+    for _ in range(10):
+        noise = rng.normal(scale=0.3, size=poppy.num_joints)
+        q = np.clip(poppy.init_pose + noise, poppy.lower, poppy.upper)
+        targets = FrameTargets(r.bone_directions(q), r.bone_normals(q))
+        r.reset()
+        for _ in range(3):
+            res = r.solve(targets, 10.0)
+            assert np.all(res.q >= poppy.lower)
+            assert np.all(res.q <= poppy.upper)
+        errors.append(_angles_deg(r.bone_directions(res.q), targets.directions))
+    assert float(np.median(errors)) < 0.5
+
+
+@pytest.mark.data
+def test_offline_windows_are_smoother_than_online_on_mocap(
+    shared_data_dir: Path, op3_retargeter: Retargeter
+) -> None:
+    from robot_retarget.motion import load_motion
+    from robot_retarget.optimize import targets_from_rotations
+
+    r = op3_retargeter
+    motion = load_motion(shared_data_dir / "mocap" / "05" / "05_02.bvh", max_frames=240)
+    targets = targets_from_rotations(
+        r.problem, motion.skeleton, motion.local_quats, root_pos=motion.root_pos
+    )
+    dt = 1.0 / motion.fps
+    r.reset()
+    online = np.stack([r.solve(targets.frame(t), dt).q for t in range(len(targets))])
+    offline, _ = r.solve_clip(targets, dt)
+
+    def rms_acc(q: np.ndarray) -> float:
+        return float(np.sqrt(np.mean((np.diff(q, 2, axis=0) / dt**2) ** 2)))
+
+    def mean_err(q: np.ndarray) -> float:
+        dirs = np.stack([r.bone_directions(x) for x in q])
+        return float(np.mean(_angles_deg(dirs, targets.directions)))
+
+    assert rms_acc(offline.q) < 0.95 * rms_acc(online)
+    assert mean_err(offline.q) <= mean_err(online) + 0.1
+    assert not offline.used_fallback
+
+
+def test_warm_up_keeps_the_state_and_q_prev_overrides_it(op3_retargeter: Retargeter) -> None:
+    r = op3_retargeter
+    cfg = r.config
+    start = np.clip(cfg.init_pose + 0.1, cfg.lower, cfg.upper)
+    r.reset(start)
+    r.warm_up(frames=3)
+    np.testing.assert_array_equal(r.q_prev, start)
+    measured = np.clip(cfg.init_pose - 0.2, cfg.lower, cfg.upper)
+    dt = 0.005
+    res = r.solve(FrameTargets(r.bone_directions(cfg.init_pose)), dt, q_prev=measured)
+    assert np.all(np.abs(res.q - measured) <= cfg.max_velocity * dt + _EXACT)
+    np.testing.assert_array_equal(r.q_prev, res.q)

@@ -1,0 +1,77 @@
+"""Solver construction: options, cache keys, buffered calls."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robot_retarget.optimize.formulation import RobotProblem
+from robot_retarget.optimize.solver import (
+    CACHE_ENV,
+    BufferedSolver,
+    SolverSpec,
+    build_solver,
+    cache_key,
+    default_cache_dir,
+    find_compiler,
+)
+from robot_retarget.robot.config import RobotConfig
+
+
+def test_cache_key_depends_on_expressions_and_options(twist_arm: RobotConfig) -> None:
+    prob = RobotProblem(twist_arm)
+    spec = SolverSpec(name="s", qpsol="daqp", max_iter=20, jit=True)
+    assert cache_key(spec, prob.build_nlp(1)) == cache_key(
+        spec, RobotProblem(twist_arm).build_nlp(1)
+    )
+    assert cache_key(spec, prob.build_nlp(1)) != cache_key(spec, prob.build_nlp(2))
+    other = SolverSpec(name="s", qpsol="daqp", max_iter=10, jit=True)
+    assert cache_key(spec, prob.build_nlp(1)) != cache_key(other, prob.build_nlp(1))
+
+
+def test_cache_dir_from_environment(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    assert default_cache_dir() == tmp_path
+    monkeypatch.delenv(CACHE_ENV)
+    assert default_cache_dir().name == "robot_retarget"
+
+
+def test_find_compiler() -> None:
+    assert find_compiler("no-such-cc-for-robot-retarget") is None
+
+
+@pytest.mark.parametrize("qpsol", ["daqp", "qrqp", "osqp"])
+def test_buffered_solve_matches_plain_call(twist_arm: RobotConfig, qpsol: str) -> None:
+    prob = RobotProblem(twist_arm)
+    nlp = prob.build_nlp(1)
+    spec = SolverSpec(name="t", qpsol=qpsol, max_iter=20, jit=False, hessian="exact")
+    solver, jit_used = build_solver(spec, nlp)
+    assert not jit_used
+    buffered = BufferedSolver(solver, jit_used)
+    rng = np.random.default_rng(0)
+    q = rng.uniform(twist_arm.lower, twist_arm.upper)
+    lay = prob.layout
+    buffered.p[lay.dirs] = np.asarray(prob.directions_function(q)).T.ravel()
+    buffered.p[lay.w_dir] = 1.0
+    buffered.lbx[:] = twist_arm.lower
+    buffered.ubx[:] = twist_arm.upper
+    buffered.lbg[:] = -np.inf
+    buffered.ubg[:] = np.inf
+    converged, iters, status = buffered.call()
+    assert converged, status
+    assert iters >= 1
+    plain = solver(
+        x0=buffered.x0, p=buffered.p, lbx=buffered.lbx, ubx=buffered.ubx,
+        lbg=buffered.lbg, ubg=buffered.ubg,
+    )  # fmt: skip
+    np.testing.assert_allclose(buffered.x, np.asarray(plain["x"]).ravel(), atol=1e-7)
+
+
+def test_unknown_choices_are_rejected(twist_arm: RobotConfig) -> None:
+    nlp = RobotProblem(twist_arm).build_nlp(1)
+    with pytest.raises(ValueError, match="QP solver"):
+        build_solver(SolverSpec(name="t", qpsol="nope", max_iter=5, jit=False), nlp)
+    with pytest.raises(ValueError, match="Hessian"):
+        build_solver(SolverSpec(name="t", qpsol="daqp", max_iter=5, jit=False, hessian="x"), nlp)

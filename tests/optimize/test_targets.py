@@ -1,0 +1,108 @@
+"""Canonical rotations → optimizer targets in a heading-free body frame."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from robot_retarget.errors import SolveError
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.optimize.formulation import RobotProblem
+from robot_retarget.optimize.targets import (
+    ClipTargets,
+    targets_from_globals,
+    targets_from_rotations,
+)
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.skeleton.canonical import Joint, default_canonical_skeleton
+from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
+
+
+@pytest.fixture(scope="module")
+def problem(op3: RobotConfig) -> RobotProblem:
+    return RobotProblem(op3)
+
+
+def _rest(frames: int = 1) -> np.ndarray:
+    return quat.identity((frames, 22))
+
+
+def test_rest_pose_gives_rest_axes_and_normals(problem: RobotProblem) -> None:
+    tg = targets_from_rotations(problem, default_canonical_skeleton(), _rest())
+    np.testing.assert_allclose(tg.directions[0], [b.rest_axis for b in problem.bones], atol=1e-12)
+    np.testing.assert_allclose(tg.normals[0], [b.rest_normal for b in problem.bones], atol=1e-12)
+
+
+def test_left_arm_raised_forward_points_along_robot_forward(problem: RobotProblem) -> None:
+    q = _rest()
+    q[0, Joint.LeftArm] = quat.from_axis_angle([0.0, 1.0, 0.0], -math.pi / 2)
+    tg = targets_from_rotations(problem, default_canonical_skeleton(), q)
+    k = [b.canonical for b in problem.bones].index("LeftArm")
+    np.testing.assert_allclose(tg.directions[0, k], [1.0, 0.0, 0.0], atol=1e-12)
+
+
+@pytest.mark.parametrize("yaw_deg", [-170.0, -30.0, 45.0, 120.0])
+def test_targets_do_not_depend_on_heading(problem: RobotProblem, yaw_deg: float) -> None:
+    rng = np.random.default_rng(5)
+    q = quat.normalize(quat.identity((3, 22)) + 0.3 * rng.normal(size=(3, 22, 4)))
+    turned = q.copy()
+    yaw = quat.from_axis_angle([0.0, 1.0, 0.0], math.radians(yaw_deg))
+    turned[:, Joint.Hips] = quat.mul(yaw, q[:, Joint.Hips])
+    sk = default_canonical_skeleton()
+    a = targets_from_rotations(problem, sk, q, end_effectors=True)
+    b = targets_from_rotations(problem, sk, turned, end_effectors=True)
+    np.testing.assert_allclose(a.directions, b.directions, atol=1e-9)
+    np.testing.assert_allclose(a.normals, b.normals, atol=1e-9)
+    np.testing.assert_allclose(a.ee_positions, b.ee_positions, atol=1e-9)
+
+
+def test_end_effectors_are_relative_to_the_hips_and_scaled(problem: RobotProblem) -> None:
+    sk = default_canonical_skeleton()
+    tg = targets_from_rotations(
+        problem, sk, _rest(), root_pos=np.array([[5.0, 1.0, -2.0]]), end_effectors=True, scale=0.5
+    )
+    rest = sk.rest_positions()
+    hips = 0.5 * (rest[Joint.LeftUpLeg] + rest[Joint.RightUpLeg])
+    k = [name for name, _ in problem.ee_frames].index("LeftHand")
+    want = problem.hip_center + problem.canonical_to_root @ ((rest[Joint.LeftHand] - hips) * 0.5)
+    np.testing.assert_allclose(tg.ee_positions[0, k], want, atol=1e-12)
+
+
+def test_invalid_input_raises(problem: RobotProblem) -> None:
+    q = _rest(2)
+    q[1, 3, 0] = math.nan
+    with pytest.raises(SolveError, match="NaN"):
+        targets_from_rotations(problem, default_canonical_skeleton(), q)
+    small = Skeleton(("Hips", "Spine"), (-1, 0), np.zeros((2, 3)))
+    with pytest.raises(SolveError, match="canonical skeleton"):
+        targets_from_rotations(problem, small, _rest())
+    with pytest.raises(SolveError, match=r"\(T, 22, 4\)"):
+        targets_from_rotations(problem, default_canonical_skeleton(), quat.identity((22,)))
+
+
+def test_clip_targets_frame_and_slice() -> None:
+    dirs = np.arange(4 * 2 * 3, dtype=float).reshape(4, 2, 3)
+    clip = ClipTargets(dirs, root_height_m=np.array([0.1, 0.2, 0.3, 0.4]))
+    assert len(clip) == 4
+    assert len(clip.slice(1, 3)) == 2
+    f = clip.frame(2)
+    np.testing.assert_array_equal(f.directions, dirs[2])
+    assert f.root_height_m == pytest.approx(0.3)
+    assert f.normals is None
+    assert f.ee_positions is None
+
+
+def test_globals_path_matches_rotations_path(problem: RobotProblem) -> None:
+    rng = np.random.default_rng(9)
+    q = quat.normalize(quat.identity((4, 22)) + 0.4 * rng.normal(size=(4, 22, 4)))
+    sk = default_canonical_skeleton()
+    pos, glob = forward_kinematics(sk, q)
+    a = targets_from_rotations(problem, sk, q, end_effectors=True)
+    b = targets_from_globals(problem, pos, glob, end_effectors=True)
+    np.testing.assert_array_equal(a.directions, b.directions)
+    np.testing.assert_array_equal(a.normals, b.normals)
+    np.testing.assert_array_equal(a.ee_positions, b.ee_positions)
+    with pytest.raises(SolveError, match="positions"):
+        targets_from_globals(problem, pos[0], glob)
