@@ -93,8 +93,16 @@ def rotate(q: npt.ArrayLike, v: npt.ArrayLike) -> FloatArray:
     va = as_float_array(v)
     w = qa[..., :1]
     u = qa[..., 1:]
-    t = 2.0 * np.cross(u, va)
-    return va + w * t + np.cross(u, t)
+    t = 2.0 * _cross(u, va)
+    return va + w * t + _cross(u, t)
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Cross product over the last axis; several times faster than np.cross on small arrays,
+    which dominates per-frame forward kinematics."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def to_matrix(q: npt.ArrayLike) -> FloatArray:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
@@ -70,6 +71,18 @@ class Skeleton:
         parents = tuple(-1 if p is None else index[p] for p in parent_names)
         return cls(tuple(names), parents, np.asarray(offsets, dtype=np.float64))
 
+    @cached_property
+    def depth_levels(self) -> tuple[tuple[IntArray, IntArray], ...]:
+        """(joint indices, their parents' indices) for each tree depth below the root."""
+        depth = [0] * self.num_joints
+        for i in range(1, self.num_joints):
+            depth[i] = depth[self.parents[i]] + 1
+        levels = []
+        for level in range(1, max(depth) + 1):
+            idx = [i for i, d in enumerate(depth) if d == level]
+            levels.append((as_index_array(idx), as_index_array([self.parents[i] for i in idx])))
+        return tuple(levels)
+
     @property
     def num_joints(self) -> int:
         return len(self.names)
@@ -125,10 +138,11 @@ def forward_kinematics(
     pos = np.empty((*lead, j, 3))
     pos[..., 0, :] = 0.0 if root_pos is None else quat.as_float_array(root_pos)
     glob_q[..., 0, :] = q[..., 0, :]
-    for i in range(1, j):
-        p = skeleton.parents[i]
-        pos[..., i, :] = pos[..., p, :] + quat.rotate(glob_q[..., p, :], s[..., i, :])
-        glob_q[..., i, :] = quat.mul(glob_q[..., p, :], q[..., i, :])
+    # One vectorised step per tree depth (7 for the canonical skeleton) instead of per joint.
+    for idx, par in skeleton.depth_levels:
+        parent_q = glob_q[..., par, :]
+        pos[..., idx, :] = pos[..., par, :] + quat.rotate(parent_q, s[..., idx, :])
+        glob_q[..., idx, :] = quat.mul(parent_q, q[..., idx, :])
     return pos, glob_q
 
 
