@@ -3,8 +3,9 @@
 Each canonical joint takes the *global* rotation of its source joint (joint_map.py), and its
 rest offset is the rest-pose position difference between the mapped source joints, so the
 source joints that are not mapped (LHipJoint, Neck, fingers, …) fold into the bones. Local
-rotations are then parent⁻¹ ⊗ global. Where the dropped in-between joints never rotate, the
-canonical joints land exactly on their source joints.
+rotations are then parent⁻¹ ⊗ global, after re-expressing the motion relative to the canonical
+T-pose (skeleton/rest_pose.py: joint positions unchanged). Where the dropped in-between joints
+never rotate, the canonical joints land exactly on their source joints.
 
 Z-up (or any other axis-up) files are turned Y-up: with r the rotation taking the file's up
 axis to +Y, positions become r·p and global rotations r ⊗ G ⊗ r*, which keeps the rest pose
@@ -27,6 +28,7 @@ from robot_retarget.motion.joint_map import JointMap, map_joints
 from robot_retarget.motion.tpose import count_synthetic_tpose_frames
 from robot_retarget.motion.units import detect_unit, unit_scale_m
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.rest_pose import align_to_tpose
 from robot_retarget.skeleton.skeleton import Skeleton, local_from_global
 
 FloatArray = npt.NDArray[np.float64]
@@ -159,6 +161,8 @@ def canonicalize(
     if hips is None:  # required joint: map_joints guarantees it
         raise MotionFormatError("the Hips joint is not mapped", path=clip.path)
     root_pos = quat.rotate(r, pos[:, hips]) * scale
+    # Rotations relative to one T-pose, so they mean the same pose on every skeleton.
+    skeleton, glob = align_to_tpose(skeleton, glob)
     local = local_from_global(skeleton, glob)
     return HumanMotion(
         skeleton=skeleton,

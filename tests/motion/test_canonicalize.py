@@ -198,3 +198,12 @@ def test_ambiguous_up_axis_asks_for_it() -> None:
 def test_max_frames_must_be_positive(motion_fixtures: Path) -> None:
     with pytest.raises(ValueError, match="at least 1"):
         load_motion(motion_fixtures / "tiny_walk.bvh", max_frames=0)
+
+
+def test_cmu_clip_is_expressed_relative_to_the_tpose(shared_data_dir: Path) -> None:
+    """The CMU conversion's rest thighs splay 20°: after canonicalisation the rest legs point
+    straight down, so rotations copied onto a straight-legged robot do not cross its legs."""
+    motion = load_motion(shared_data_dir / "mocap" / "02" / "02_01.bvh", max_frames=5)
+    for joint in ("LeftLeg", "RightLeg", "LeftFoot", "RightFoot"):
+        offset = motion.skeleton.offsets[motion.skeleton.index(joint)]
+        np.testing.assert_allclose(offset / np.linalg.norm(offset), [0.0, -1.0, 0.0], atol=1e-12)
