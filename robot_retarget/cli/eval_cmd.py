@@ -1,0 +1,119 @@
+"""``eval --model NAME|PATH --data DIR [--robot op3] [--json]``: score models on unseen subjects.
+
+Loads the clips of the validation subjects (the training default, or those a checkpoint was
+validated on), retargets each onto the other validation subjects' skeletons and the robot's
+canonical skeleton, and prints one table row per model (robot_retarget.evaluation.runner).
+``--model`` is repeatable: ``--model copy --model copy-scaled --model runs/x/best.pt``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+NAME = "eval"
+HELP = "Evaluate retargeting models on validation subjects (errors, skate, denoising)."
+
+_DEFAULT_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--model",
+        action="append",
+        default=None,
+        metavar="NAME|PATH",
+        help="model name (copy, copy-scaled, a shipped checkpoint) or checkpoint path / run "
+        "folder; repeatable (default: copy, copy-scaled and the shipped default model)",
+    )
+    parser.add_argument(
+        "--data", default=str(_DEFAULT_DATA), help=f"folder of BVH clips (default {_DEFAULT_DATA})"
+    )
+    parser.add_argument(
+        "--robot",
+        action="append",
+        default=None,
+        help="robot config whose canonical skeleton is a target (repeatable; default op3; "
+        "'none' for no robot)",
+    )
+    parser.add_argument(
+        "--val-subjects",
+        default=None,
+        help="comma-separated subjects to evaluate on (default: the training default)",
+    )
+    parser.add_argument("--fps", type=float, default=None, help="frame rate (default 30)")
+    parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the denoising noise")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
+
+
+def run(args: argparse.Namespace) -> int:
+    from robot_retarget.evaluation.runner import (
+        EvalSettings,
+        acceptance,
+        evaluate,
+        format_table,
+    )
+    from robot_retarget.nn.dataset import (
+        DEFAULT_FPS,
+        DEFAULT_VALIDATION_SUBJECTS,
+        load_dataset,
+        robot_skeletons,
+    )
+    from robot_retarget.nn.inference import DEFAULT_MODEL, load_model, shipped_checkpoints
+
+    names = args.model or ["copy", "copy-scaled"] + (
+        [DEFAULT_MODEL] if DEFAULT_MODEL in shipped_checkpoints() else []
+    )
+    models = [load_model(n) for n in names]
+    subjects: tuple[str, ...] = DEFAULT_VALIDATION_SUBJECTS
+    if args.val_subjects:
+        subjects = tuple(s for s in args.val_subjects.split(",") if s)
+    fps = DEFAULT_FPS if args.fps is None else args.fps
+    dataset = load_dataset(args.data, fps=fps, cache_dir=args.cache_dir)
+    _, val = dataset.split(subjects)
+    robot_names = [r for r in (args.robot or ["op3"]) if r != "none"]
+    robots = robot_skeletons(tuple(robot_names))
+    settings = EvalSettings(robots=tuple(robot_names), max_frames=args.max_frames, seed=args.seed)
+    results = []
+    for m in models:
+        trained_on = set(m.metadata.get("train_subjects", []))
+        leaked = sorted(trained_on & set(val.subjects))
+        if leaked:
+            print(
+                f"warning: {m.name} was trained on evaluation subject(s) {leaked}",
+                file=sys.stderr,
+            )
+        results.append(evaluate(m, val.clips, robots, settings))
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "subjects": list(val.subjects),
+                    "robots": robot_names,
+                    "fps": fps,
+                    "results": [r.to_json() for r in results],
+                },
+                indent=2,
+            )
+        )
+    else:
+        print(format_table(results, markdown=args.markdown))
+        print(
+            f"\n{results[0].clips if results else 0} clips of subjects {', '.join(val.subjects)}; "
+            f"targets: other subjects + {', '.join(robot_names) or 'no robot'}; lower is better",
+        )
+        names = [r.model for r in results]
+        if "copy" in names and "copy-scaled" in names:
+            for r in results:
+                if r.model in ("copy", "copy-scaled"):
+                    continue
+                print(f"\nacceptance goals of {r.model}:")
+                for check in acceptance(results, r.model):
+                    mark = "met" if check.met else "NOT met"
+                    print(f"  {check.goal}: {mark} ({check.detail})")
+    return 0

@@ -1,0 +1,189 @@
+"""``train --model pmnet --data DIR --out runs/NAME``: train a retargeting network.
+
+Prints a progress bar (stderr) with the running losses and the latest validation score;
+writes checkpoints and logs into the run folder (see robot_retarget.nn.train). ``--resume``
+continues a run from its last checkpoint with the stored settings, or with a larger --steps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from pathlib import Path
+from typing import Any
+
+from robot_retarget.errors import RetargetError
+
+NAME = "train"
+HELP = "Train a retargeting network (nkn, pmnet) on a folder of BVH clips."
+
+_DEFAULT_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
+
+
+class TrainArgumentError(RetargetError):
+    """A command-line value cannot be used (names the option and what is allowed)."""
+
+
+def _model_config(pairs: list[str]) -> dict[str, Any]:
+    """KEY=VALUE strings → dict; values parsed as JSON when they are JSON (numbers, bools)."""
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise TrainArgumentError(
+                f"--model-config {pair!r}: expected KEY=VALUE, e.g. hidden_size=256"
+            )
+        try:
+            out[key] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key] = value
+    return out
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    from robot_retarget.nn.dataset import (
+        DEFAULT_FPS,
+        DEFAULT_ROBOTS,
+        DEFAULT_VALIDATION_SUBJECTS,
+        DEFAULT_WINDOW_FRAMES,
+    )
+
+    parser.add_argument("--model", required=True, choices=("nkn", "pmnet"), help="network")
+    parser.add_argument(
+        "--data", default=str(_DEFAULT_DATA), help=f"folder of BVH clips (default {_DEFAULT_DATA})"
+    )
+    parser.add_argument("--out", required=True, help="run folder, e.g. runs/pmnet-1")
+    parser.add_argument("--resume", action="store_true", help="continue the run in --out")
+    parser.add_argument("--steps", type=int, default=20000, help="total optimisation steps")
+    parser.add_argument("--batch-size", type=int, default=32)
+    parser.add_argument("--window", type=int, default=DEFAULT_WINDOW_FRAMES, help="frames")
+    parser.add_argument("--fps", type=float, default=DEFAULT_FPS, help="common frame rate")
+    parser.add_argument(
+        "--val-subjects",
+        default=",".join(DEFAULT_VALIDATION_SUBJECTS),
+        help="comma-separated validation subjects, never trained on (default %(default)s)",
+    )
+    parser.add_argument(
+        "--robots",
+        default=",".join(DEFAULT_ROBOTS),
+        help="robot configs whose canonical skeletons are training targets (default %(default)s;"
+        " empty for none)",
+    )
+    parser.add_argument("--val-every", type=int, default=500, help="steps between validations")
+    parser.add_argument("--checkpoint-every", type=int, default=500)
+    parser.add_argument("--log-every", type=int, default=25)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--device", default="cpu", help="cpu (default) or cuda")
+    parser.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate (papers: 1e-4)")
+    parser.add_argument(
+        "--model-config",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="model constructor argument, e.g. hidden_size=256 (repeatable)",
+    )
+    parser.add_argument(
+        "--disc-config",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="discriminator constructor argument, e.g. channels=[16,32,64,128] (repeatable)",
+    )
+    parser.add_argument(
+        "--same-skeleton-recon",
+        type=float,
+        default=0.0,
+        metavar="WEIGHT",
+        help="extra B = A reconstruction loss on the retargeted pose (deviation from the "
+        "papers; default 0 = off; see robot_retarget.nn.train.same_skeleton_step)",
+    )
+    parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
+    parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
+    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _bar(done: int, total: int, width: int = 24) -> str:
+    filled = int(width * done / max(total, 1))
+    return "[" + "#" * filled + "." * (width - filled) + "]"
+
+
+def run(args: argparse.Namespace) -> int:
+    import torch
+
+    from robot_retarget.nn.train import TrainConfig, TrainProgress, load_run, train
+
+    if args.threads is not None:
+        torch.set_num_threads(args.threads)
+    subjects = tuple(s for s in args.val_subjects.split(",") if s)
+    robots = tuple(r for r in args.robots.split(",") if r)
+    if args.resume and Path(args.out, "config.json").is_file():
+        stored, _ = load_run(args.out)
+        if stored.model != args.model:
+            raise TrainArgumentError(
+                f"--resume: the run in {args.out} trains {stored.model}, not {args.model}; "
+                f"pass --model {stored.model}"
+            )
+        # Resume with the stored settings; only --steps (to extend a run) and --device change.
+        config = TrainConfig.from_json(
+            {**stored.to_json(), "steps": args.steps, "device": args.device}
+        )
+    else:
+        config = TrainConfig(
+            model=args.model,
+            data_dir=args.data,
+            out_dir=args.out,
+            steps=args.steps,
+            batch_size=args.batch_size,
+            window_frames=args.window,
+            fps=args.fps,
+            validation_subjects=subjects,
+            robots=robots,
+            val_every=args.val_every,
+            checkpoint_every=args.checkpoint_every,
+            log_every=args.log_every,
+            seed=args.seed,
+            device=args.device,
+            lr=args.lr,
+            model_config=_model_config(args.model_config),
+            discriminator_config=_model_config(args.disc_config),
+            same_skeleton_recon=args.same_skeleton_recon,
+            max_frames=args.max_frames,
+            cache_dir=args.cache_dir,
+        )
+    last_val: dict[str, float] = {}
+
+    def show(p: TrainProgress) -> None:
+        if p.validation is not None:
+            last_val.update(p.validation)
+        if args.quiet:
+            return
+        rate = p.elapsed_s / max(p.step, 1)
+        loss = p.losses.get("total", float("nan"))
+        val = f" val score {last_val['score']:.4f}" if last_val else ""
+        end = "\n" if p.validation is not None or p.step == p.total_steps else ""
+        print(
+            f"\r{_bar(p.step, p.total_steps)} {p.step}/{p.total_steps} loss {loss:.4f}{val} "
+            f"({p.elapsed_s:.0f} s, {rate * 1e3:.0f} ms/step)",
+            end=end,
+            file=sys.stderr,
+            flush=True,
+        )
+
+    command = "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
+    result = train(config, resume=args.resume, progress=show, command=command)
+    print(
+        json.dumps(
+            {
+                "out": str(result.out_dir),
+                "best": str(result.best_path),
+                "last": str(result.last_path),
+                "steps": result.steps,
+                "best_score": result.best_score,
+                "data_hash": result.data_hash,
+            }
+        )
+    )
+    return 0

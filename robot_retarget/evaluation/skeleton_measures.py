@@ -1,0 +1,41 @@
+"""Sizes of a canonical skeleton that metrics normalise by: height, arm and leg length."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.motion.human_motion import standing_height
+from robot_retarget.skeleton.canonical import Joint
+from robot_retarget.skeleton.skeleton import Skeleton
+
+FloatArray = npt.NDArray[np.float64]
+
+_SIDES = ("Left", "Right")
+
+
+def skeleton_height(skeleton: Skeleton) -> float:
+    """Standing height (m) with straightened legs, as HumanMotion.height_m measures it."""
+    rest = skeleton.rest_positions()
+    return standing_height(
+        rest[Joint.Hips],
+        rest[Joint.Head],
+        [rest[Joint[s + "UpLeg"]] for s in _SIDES],
+        [rest[Joint[s + "Leg"]] for s in _SIDES],
+        [rest[Joint[s + "Foot"]] for s in _SIDES],
+        [rest[Joint[s + "ToeBase"]] for s in _SIDES],
+    )
+
+
+def arm_length(skeleton: Skeleton) -> float:
+    """Upper arm + forearm (m), mean of both sides: shoulder joint to wrist."""
+    lengths = skeleton.bone_lengths()
+    return float(
+        np.mean([lengths[Joint[s + "ForeArm"]] + lengths[Joint[s + "Hand"]] for s in _SIDES])
+    )
+
+
+def leg_length(skeleton: Skeleton) -> float:
+    """Thigh + shin (m), mean of both sides: hip joint to ankle."""
+    lengths = skeleton.bone_lengths()
+    return float(np.mean([lengths[Joint[s + "Leg"]] + lengths[Joint[s + "Foot"]] for s in _SIDES]))

@@ -1,0 +1,148 @@
+"""``bench model``: time per frame of a retargeting model, online (one ``step`` per frame) and
+per clip (one forward pass, time divided by the frames).
+
+The goal is ≤ 0.3 ms median per frame on one core for NKN and PMnet online. The input is a
+synthetic motion (smooth random rotations on the default canonical skeleton, a walking root)
+retargeted onto OP3-sized proportions, so no data set is needed; timing does not depend on the
+motion. A name that is a trainable architecture with no shipped checkpoint (``nkn``,
+``pmnet``) is timed with freshly initialised weights of the papers' sizes (the record's
+``weights`` says which).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import torch
+
+from robot_retarget.bench_stats import TimingStats
+from robot_retarget.errors import ModelLoadError
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.nn.inference import (
+    BUILTIN_MODELS,
+    LoadedModel,
+    OnlineRetargeter,
+    load_model,
+    retarget_clip,
+    shipped_checkpoints,
+)
+from robot_retarget.nn.models.registry import MODELS, build_model
+from robot_retarget.skeleton.canonical import default_canonical_skeleton
+
+HELP = "Retargeting model time per frame, online and per clip (median, p99)."
+
+FloatArray = npt.NDArray[np.float64]
+
+_DEFAULT_MODELS = ("copy", "nkn", "pmnet")
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--model",
+        action="append",
+        default=None,
+        help=f"model name or checkpoint path (repeatable; default: {', '.join(_DEFAULT_MODELS)})",
+    )
+    parser.add_argument("--frames", type=int, default=1000, help="timed frames (default 1000)")
+    parser.add_argument("--warmup", type=int, default=100, help="untimed frames first")
+    parser.add_argument("--clip-repeats", type=int, default=5, help="timed whole-clip passes")
+    parser.add_argument(
+        "--threads", type=int, default=1, help="torch CPU threads (default 1: one core)"
+    )
+    parser.add_argument(
+        "--mode", choices=("online", "clip", "both"), default="both", help="what to time"
+    )
+
+
+def synthetic_motion(frames: int, seed: int = 0) -> tuple[FloatArray, FloatArray]:
+    """Smooth random local rotations (T, 22, 4) and a walking root path (T, 3), metres."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)[:, None, None] / 30.0
+    amp = rng.uniform(0.1, 0.5, size=(1, 22, 3))
+    freq = rng.uniform(0.3, 1.5, size=(1, 22, 3))
+    phase = rng.uniform(0, 2 * np.pi, size=(1, 22, 3))
+    q = quat.from_rotation_vector(amp * np.sin(2 * np.pi * freq * t + phase))
+    root = np.stack(
+        [0.1 * np.sin(t[:, 0, 0]), 0.9 + 0.02 * np.sin(4 * t[:, 0, 0]), 1.2 * t[:, 0, 0]], -1
+    )
+    return q, root
+
+
+def resolve(name: str) -> tuple[LoadedModel, str]:
+    """The model to time and whether it has ``trained`` / ``untrained`` / ``none`` weights."""
+    if name in BUILTIN_MODELS:
+        return load_model(name), "none"
+    if name in shipped_checkpoints() or name not in MODELS:
+        return load_model(name), "trained"
+    return LoadedModel(name=name, model=build_model(name).eval()), "untrained"
+
+
+def _target_offsets() -> FloatArray:
+    # A third of an adult: robot-sized proportions without reading a robot config.
+    return np.asarray(default_canonical_skeleton().offsets * 0.33, dtype=np.float64)
+
+
+def time_online(model: LoadedModel, frames: int, warmup: int) -> TimingStats:
+    q, root = synthetic_motion(frames + warmup)
+    online = OnlineRetargeter(model, default_canonical_skeleton().offsets, _target_offsets())
+    online.reset()
+    durations = []
+    for i in range(frames + warmup):
+        start = time.perf_counter()
+        online.step(q[i], root[i])
+        if i >= warmup:
+            durations.append(time.perf_counter() - start)
+    return TimingStats.from_seconds(durations)
+
+
+def time_clip(model: LoadedModel, frames: int, repeats: int) -> TimingStats:
+    """Per-frame time of whole-clip passes (each pass's time / frames)."""
+    q, root = synthetic_motion(frames)
+    src = default_canonical_skeleton().offsets
+    tgt = _target_offsets()
+    retarget_clip(model, q[: min(frames, 30)], root[: min(frames, 30)], src, tgt)  # warm up
+    durations = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        retarget_clip(model, q, root, src, tgt)
+        durations.append((time.perf_counter() - start) / frames)
+    return TimingStats.from_seconds(durations)
+
+
+def run(args: argparse.Namespace) -> list[dict[str, Any]]:
+    names = args.model or list(_DEFAULT_MODELS)
+    if args.frames < 1 or args.warmup < 0 or args.clip_repeats < 1:
+        raise ModelLoadError(
+            f"--frames ({args.frames}) and --clip-repeats ({args.clip_repeats}) must be ≥ 1 "
+            f"and --warmup ({args.warmup}) ≥ 0"
+        )
+    previous = torch.get_num_threads()
+    torch.set_num_threads(args.threads)
+    records: list[dict[str, Any]] = []
+    try:
+        for name in names:
+            model, weights = resolve(name)
+            modes = ("online", "clip") if args.mode == "both" else (args.mode,)
+            for mode in modes:
+                if mode == "online":
+                    stats = time_online(model, args.frames, args.warmup)
+                else:
+                    stats = time_clip(model, args.frames, args.clip_repeats)
+                records.append(
+                    {
+                        "model": name,
+                        "mode": mode,
+                        "frames": args.frames,
+                        "median_ms": stats.median_ms,
+                        "p99_ms": stats.p99_ms,
+                        "weights": weights,
+                        "threads": args.threads,
+                    }
+                )
+    finally:
+        torch.set_num_threads(previous)
+    return records

@@ -1,0 +1,448 @@
+"""Train NKN or PMnet on a folder of BVH clips: the loop behind ``launch.py train``.
+
+A run folder holds everything needed to inspect, evaluate or continue the run:
+
+- ``config.json``: the :class:`TrainConfig` and the data hash (``--resume`` checks both);
+- ``last.pt`` / ``best.pt``: checkpoints (robot_retarget.nn.checkpoint) with the model config,
+  the skeleton set it was trained for (training subjects and robots), the data hash and the
+  step; ``best.pt`` has the lowest validation score so far;
+- ``trainer_state.pt``: step, discriminator weights, both optimisers, best score (for
+  ``--resume``);
+- ``log.csv`` and ``events.out.tfevents.*``: training losses and validation metrics.
+
+Reproducible: batch n is a pure function of (seed, n) (WindowSampler) and the torch generator
+is re-seeded from (seed, n) before each step, so a resumed run draws what the uninterrupted
+run would have drawn.
+
+Validation (every ``val_every`` steps) retargets fixed windows of the validation subjects onto
+the other subjects' and the robots' skeletons and reports, on the heading-free local pose:
+``recon`` and ``cycle`` (mean squared joint error / height², × 10³), ``ee`` (hands and feet
+relative to the root, in limb lengths, against the source), ``yaw_rate`` (mean |turning-rate
+error| against the source, rad/s: heading drift) and ``score`` = ``ee`` + ``cycle`` / 100 +
+``yaw_rate``, which picks ``best.pt``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from robot_retarget.errors import ModelLoadError, RetargetError
+from robot_retarget.nn.checkpoint import load_checkpoint, save_checkpoint
+from robot_retarget.nn.dataset import (
+    DEFAULT_FPS,
+    DEFAULT_ROBOTS,
+    DEFAULT_VALIDATION_SUBJECTS,
+    DEFAULT_WINDOW_FRAMES,
+    Augmentation,
+    MotionDataset,
+    WindowSampler,
+    fit_features,
+    load_dataset,
+    robot_skeletons,
+)
+from robot_retarget.nn.features import compute_features, skeleton_height
+from robot_retarget.nn.losses import end_effector_weights, reconstruction_loss, squared_error
+from robot_retarget.nn.models.base import RetargetModel
+from robot_retarget.nn.models.batch import RetargetBatch
+from robot_retarget.nn.models.registry import build_discriminator, build_model
+from robot_retarget.nn.models.training import LEARNING_RATE, make_optimizers, training_step
+from robot_retarget.nn.train_log import TrainLog
+from robot_retarget.skeleton.canonical import Joint
+
+TRAINABLE_MODELS: tuple[str, ...] = ("nkn", "pmnet")
+_HANDS_FEET = [int(Joint.LeftHand), int(Joint.RightHand), int(Joint.LeftFoot), int(Joint.RightFoot)]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that defines a training run (stored in ``config.json``)."""
+
+    model: str
+    data_dir: str
+    out_dir: str
+    steps: int = 20000
+    batch_size: int = 32
+    window_frames: int = DEFAULT_WINDOW_FRAMES
+    fps: float = DEFAULT_FPS
+    validation_subjects: tuple[str, ...] = DEFAULT_VALIDATION_SUBJECTS
+    robots: tuple[str, ...] = DEFAULT_ROBOTS
+    val_every: int = 500
+    val_batches: int = 4
+    checkpoint_every: int = 500
+    log_every: int = 25
+    seed: int = 0
+    device: str = "cpu"
+    lr: float = LEARNING_RATE
+    model_config: dict[str, Any] = field(default_factory=dict)
+    discriminator_config: dict[str, Any] = field(default_factory=dict)
+    same_skeleton_recon: float = 0.0
+    max_frames: int | None = None
+    cache_dir: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["validation_subjects"] = list(self.validation_subjects)
+        d["robots"] = list(self.robots)
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> TrainConfig:
+        d = dict(d)
+        d["validation_subjects"] = tuple(d["validation_subjects"])
+        d["robots"] = tuple(d["robots"])
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class TrainProgress:
+    """Reported to the caller's callback after logged steps and validations."""
+
+    step: int
+    total_steps: int
+    elapsed_s: float
+    losses: dict[str, float]
+    validation: dict[str, float] | None = None
+
+
+@dataclass(frozen=True)
+class TrainResult:
+    out_dir: Path
+    best_path: Path
+    last_path: Path
+    steps: int
+    best_score: float
+    data_hash: str
+
+
+class TrainError(RetargetError):
+    """A run cannot start or resume as asked (names the run folder and what to do)."""
+
+    def __init__(self, message: str, *, path: str | Path | None = None) -> None:
+        self.path = None if path is None else str(path)
+        super().__init__(f"{self.path}: {message}" if self.path is not None else message)
+
+
+def _seed_for(seed: int, step: int) -> int:
+    return int(np.random.SeedSequence([seed, 3, step]).generate_state(1)[0])
+
+
+def _device(name: str) -> torch.device:
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise TrainError("--device cuda asked for, but torch sees no CUDA device; use cpu")
+    return torch.device(name)
+
+
+def _to(batch: RetargetBatch, device: torch.device) -> RetargetBatch:
+    if device.type == "cpu":
+        return batch
+    real_q, real_root = batch.real_local_quats, batch.real_root_pos
+    return RetargetBatch(
+        src_local_quats=batch.src_local_quats.to(device),
+        src_root_pos=batch.src_root_pos.to(device),
+        src_offsets=batch.src_offsets.to(device),
+        tgt_offsets=batch.tgt_offsets.to(device),
+        same_skeleton=batch.same_skeleton.to(device),
+        real_local_quats=None if real_q is None else real_q.to(device),
+        real_root_pos=None if real_root is None else real_root.to(device),
+    )
+
+
+def _limb_scale(offsets: torch.Tensor) -> torch.Tensor:
+    """(B, 4) arm, arm, leg, leg lengths for hands and feet."""
+    n = torch.linalg.vector_norm(offsets, dim=-1)
+    arm = 0.5 * (n[:, Joint.LeftForeArm] + n[:, Joint.LeftHand]) + 0.5 * (
+        n[:, Joint.RightForeArm] + n[:, Joint.RightHand]
+    )
+    leg = 0.5 * (n[:, Joint.LeftLeg] + n[:, Joint.LeftFoot]) + 0.5 * (
+        n[:, Joint.RightLeg] + n[:, Joint.RightFoot]
+    )
+    return torch.stack([arm, arm, leg, leg], dim=-1)
+
+
+# Weight of the root-velocity term of same_skeleton_step, velocities in m/s and rad/s: a
+# yaw-rate error of 0.1 rad/s (a 6°/s heading drift) then costs 0.1, a third of a typical
+# pose reconstruction loss, so the integrated trajectory does not drift.
+SAME_SKELETON_VEL_WEIGHT = 10.0
+
+
+def same_skeleton_step(
+    model: RetargetModel,
+    batch: RetargetBatch,
+    optimizer: torch.optim.Optimizer,
+    weight: float,
+    fps: float = DEFAULT_FPS,
+) -> float:
+    """Opt-in extra generator update (``same_skeleton_recon`` > 0), a deviation from PMnet's
+    published losses, after NKN's square loss for B = A: on the samples whose target is their
+    own skeleton, the output must reproduce the source — its local pose (PMnet's
+    end-effector-weighted reconstruction loss, applied to the retargeted q_B instead of q_A)
+    and its root velocities (squared error in m/s and rad/s, × SAME_SKELETON_VEL_WEIGHT).
+
+    Without it, PMnet's q_B is tied to the source only through the perceptual loss on a
+    jointly trained encoder (whose features can shrink to nothing), and its root movement only
+    through the adversarial loss: in our runs validation A → A error grew while q_A's fell,
+    and the integrated heading drifted. Returns the (unweighted) loss; 0 when the batch has
+    no B = A sample.
+    """
+    same = batch.same_skeleton.to(torch.bool)
+    if not bool(same.any()):
+        return 0.0
+    model.train()
+    src = compute_features(batch.src_local_quats, batch.src_root_pos, batch.src_offsets)
+    out = model.retarget_features(
+        src, batch.src_root_pos[:, 0], batch.src_offsets, batch.tgt_offsets
+    )
+    joint_w = end_effector_weights().to(src.local_pos)
+    pose = reconstruction_loss(out.features.local_pos, src.local_pos, joint_w)
+    vel = squared_error(out.features.root_vel[:, 1:] * fps, src.root_vel[:, 1:] * fps)
+    loss = (pose + SAME_SKELETON_VEL_WEIGHT * vel)[same].mean()
+    optimizer.zero_grad(set_to_none=True)
+    (weight * loss).backward()  # type: ignore[no-untyped-call]
+    optimizer.step()
+    return float(loss.detach())
+
+
+def _pose_error(pos: torch.Tensor, ref: torch.Tensor, height: torch.Tensor) -> float:
+    """Mean squared joint error over height², × 10³."""
+    return float((((pos - ref) / height) ** 2).sum(-1).mean()) * 1e3
+
+
+@torch.no_grad()
+def validate(
+    model: RetargetModel, batches: Sequence[RetargetBatch], fps: float = DEFAULT_FPS
+) -> dict[str, float]:
+    """Validation metrics on fixed batches (see the module docstring)."""
+    model.eval()
+    sums = {"recon": 0.0, "cycle": 0.0, "ee": 0.0, "yaw_rate": 0.0}
+    for b in batches:
+        src = compute_features(b.src_local_quats, b.src_root_pos, b.src_offsets)
+        init = b.src_root_pos[:, 0]
+        h_src = skeleton_height(b.src_offsets)[:, None, None, None]
+        same = model.retarget_features(src, init, b.src_offsets, b.src_offsets)
+        out_b = model.retarget_features(src, init, b.src_offsets, b.tgt_offsets)
+        back = model.retarget_features(out_b.features, init, b.tgt_offsets, b.src_offsets)
+
+        sums["recon"] += _pose_error(same.features.local_pos, src.local_pos, h_src)
+        sums["cycle"] += _pose_error(back.features.local_pos, src.local_pos, h_src)
+        ee_src = src.local_pos[:, :, _HANDS_FEET] / _limb_scale(b.src_offsets)[:, None, :, None]
+        ee_tgt = (
+            out_b.features.local_pos[:, :, _HANDS_FEET]
+            / (_limb_scale(b.tgt_offsets)[:, None, :, None])
+        )
+        sums["ee"] += float(torch.linalg.vector_norm(ee_tgt - ee_src, dim=-1).mean())
+        # Turning rate is size-independent: the target should turn as the source does.
+        dyaw = out_b.features.root_vel[:, 1:, 3] - src.root_vel[:, 1:, 3]
+        sums["yaw_rate"] += float(dyaw.abs().mean()) * fps
+    out = {k: v / len(batches) for k, v in sums.items()}
+    out["score"] = out["ee"] + out["cycle"] / 100.0 + out["yaw_rate"]
+    return out
+
+
+def _skeleton_set(train: MotionDataset, robots: dict[str, np.ndarray]) -> dict[str, Any]:
+    skeletons: dict[str, Any] = {}
+    for clip in train.clips:
+        skeletons.setdefault(f"subject:{clip.subject}", clip.offsets)
+    skeletons.update({f"robot:{name}": offs for name, offs in robots.items()})
+    return skeletons
+
+
+def train(
+    config: TrainConfig,
+    *,
+    resume: bool = False,
+    progress: Callable[[TrainProgress], None] | None = None,
+    command: str = "",
+) -> TrainResult:
+    """Run (or continue, with ``resume``) training as ``config`` says; returns where the
+    checkpoints are. Raises TrainError / DatasetError / ModelLoadError with what to change."""
+    if config.model not in TRAINABLE_MODELS:
+        raise TrainError(
+            f"model {config.model!r} cannot be trained; choose {', '.join(TRAINABLE_MODELS)} "
+            "(copy and copy-scaled have no parameters)"
+        )
+    out = Path(config.out_dir)
+    cfg_path = out / "config.json"
+    state_path = out / "trainer_state.pt"
+    last_path = out / "last.pt"
+    best_path = out / "best.pt"
+    if not resume and (last_path.exists() or state_path.exists()):
+        raise TrainError(
+            "run folder already holds a training run; pass --resume to continue it or choose "
+            "another --out",
+            path=out,
+        )
+    if resume and not (cfg_path.is_file() and state_path.is_file() and last_path.is_file()):
+        raise TrainError(
+            "nothing to resume: config.json, trainer_state.pt or last.pt is missing", path=out
+        )
+    device = _device(config.device)
+
+    dataset = load_dataset(
+        config.data_dir, fps=config.fps, max_frames=config.max_frames, cache_dir=config.cache_dir
+    )
+    train_set, val_set = dataset.split(config.validation_subjects)
+    robots = robot_skeletons(config.robots)
+    if resume:
+        saved = json.loads(cfg_path.read_text())
+        saved_cfg = TrainConfig.from_json(saved["config"])
+        if saved_cfg.model != config.model or saved["data_hash"] != train_set.data_hash:
+            raise TrainError(
+                f"cannot resume: the run trained {saved_cfg.model} on data "
+                f"{saved['data_hash'][:12]}…, now asked for {config.model} on "
+                f"{train_set.data_hash[:12]}…; use the same --model and --data",
+                path=out,
+            )
+    out.mkdir(parents=True, exist_ok=True)
+    cfg_path.write_text(
+        json.dumps({"config": config.to_json(), "data_hash": train_set.data_hash}, indent=2)
+    )
+
+    sampler = WindowSampler(
+        train_set,
+        window_frames=config.window_frames,
+        batch_size=config.batch_size,
+        robot_offsets=robots,
+        real_motion=config.model == "nkn",
+        seed=config.seed,
+    )
+    # Validation: real skeletons only (other validation subjects and robots), no B = A.
+    val_sampler = WindowSampler(
+        val_set,
+        window_frames=config.window_frames,
+        batch_size=config.batch_size,
+        robot_offsets=robots,
+        augmentation=Augmentation(
+            global_scale=(1.0, 1.0), bone_scale=(1.0, 1.0), p_same=0.0, p_augment_source=0.0
+        ),
+        seed=config.seed,
+    )
+    val_batches = [_to(val_sampler.sample(i, stream=2), device) for i in range(config.val_batches)]
+
+    torch.manual_seed(config.seed)
+    model = build_model(config.model, **config.model_config)
+    disc = build_discriminator(config.model, **config.discriminator_config)
+    start_step = 0
+    best = math.inf
+    if resume:
+        model = load_checkpoint(last_path, expected_data_hash=train_set.data_hash).model
+    else:
+        feats, offsets = fit_features(sampler)
+        model.fit_normalization(feats, offsets)
+    model.to(device)
+    disc.to(device)
+    optimizers = make_optimizers(model, disc, lr=config.lr)
+    if resume:
+        state = torch.load(state_path, map_location=device, weights_only=True)
+        disc.load_state_dict(state["discriminator"])
+        optimizers.generator.load_state_dict(state["generator_optimizer"])
+        optimizers.discriminator.load_state_dict(state["discriminator_optimizer"])
+        start_step = int(state["step"])
+        best = float(state["best_score"])
+
+    skeletons = _skeleton_set(train_set, robots)
+
+    def save(path: Path, step: int, val: dict[str, float] | None) -> None:
+        save_checkpoint(
+            path,
+            model,
+            skeletons=skeletons,
+            data_hash=train_set.data_hash,
+            metadata={
+                "step": step,
+                "train_config": config.to_json(),
+                "validation": val or {},
+                "train_subjects": list(train_set.subjects),
+                "validation_subjects": list(val_set.subjects),
+                "command": command,
+            },
+        )
+
+    def save_state(step: int) -> None:
+        tmp = state_path.with_name(state_path.name + ".tmp")
+        torch.save(
+            {
+                "step": step,
+                "best_score": best,
+                "discriminator": disc.state_dict(),
+                "generator_optimizer": optimizers.generator.state_dict(),
+                "discriminator_optimizer": optimizers.discriminator.state_dict(),
+            },
+            tmp,
+        )
+        tmp.replace(state_path)
+
+    started = time.monotonic()
+    running: dict[str, float] = {}
+    count = 0
+    step = start_step
+    with TrainLog(out) as log:
+        if not resume:
+            val = validate(model, val_batches, config.fps)
+            log.scalars(0, "val", val)
+        for step in range(start_step + 1, config.steps + 1):
+            torch.manual_seed(_seed_for(config.seed, step))
+            batch = _to(sampler.sample(step), device)
+            extra = {}
+            if config.same_skeleton_recon > 0.0:
+                extra["same_recon"] = same_skeleton_step(
+                    model, batch, optimizers.generator, config.same_skeleton_recon, config.fps
+                )
+            losses = {**training_step(model, disc, batch, optimizers), **extra}
+            for k, v in losses.items():
+                running[k] = running.get(k, 0.0) + v
+            count += 1
+            if not math.isfinite(losses["total"]):
+                raise TrainError(
+                    f"training diverged at step {step} (loss {losses['total']}); lower --lr or "
+                    "resume from the last checkpoint",
+                    path=out,
+                )
+            val_now = step % config.val_every == 0 or step == config.steps
+            if step % config.log_every == 0 or val_now:
+                mean = {k: v / count for k, v in running.items()}
+                log.scalars(step, "train", mean)
+                running, count = {}, 0
+                val_metrics = None
+                if val_now:
+                    val_metrics = validate(model, val_batches, config.fps)
+                    log.scalars(step, "val", val_metrics)
+                    if val_metrics["score"] < best:
+                        best = val_metrics["score"]
+                        save(best_path, step, val_metrics)
+                log.flush()
+                if progress is not None:
+                    progress(
+                        TrainProgress(
+                            step, config.steps, time.monotonic() - started, mean, val_metrics
+                        )
+                    )
+            if step % config.checkpoint_every == 0 or step == config.steps:
+                save(last_path, step, None)
+                save_state(step)
+    if not best_path.exists():  # no validation ran (e.g. resumed at the end): keep last
+        save(best_path, step, None)
+    return TrainResult(out, best_path, last_path, step, best, train_set.data_hash)
+
+
+def load_run(out_dir: str | Path) -> tuple[TrainConfig, str]:
+    """The config and data hash of a run folder."""
+    path = Path(out_dir) / "config.json"
+    if not path.is_file():
+        raise ModelLoadError("no config.json: not a training run folder", path=path.parent)
+    saved = json.loads(path.read_text())
+    return TrainConfig.from_json(saved["config"]), str(saved["data_hash"])
+
+
+def count_parameters(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,119 @@
+"""End to end through the command modules: train a tiny model, eval it, resume, bench it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from robot_retarget.cli import bench_cmd, eval_cmd, train_cmd
+from robot_retarget.errors import RetargetError
+from robot_retarget.nn import benchmark
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "motion"
+SUBJECTS = {
+    "s1": ("tiny_walk.bvh", "asf_names.bvh"),
+    "s2": ("mixamo.bvh",),
+    "s3": ("crlf_tabs.bvh",),
+}
+
+
+@pytest.fixture
+def mocap(tmp_path: Path) -> Path:
+    root = tmp_path / "mocap"
+    for subject, files in SUBJECTS.items():
+        (root / subject).mkdir(parents=True)
+        for name in files:
+            shutil.copy(FIXTURES / name, root / subject / name)
+    return root
+
+
+def _run(module: ModuleType, argv: list[str]) -> int:
+    parser = argparse.ArgumentParser()
+    module.configure(parser)
+    code: int = module.run(parser.parse_args(argv))
+    return code
+
+
+def _train_args(mocap: Path, out: Path, cache: Path, steps: int) -> list[str]:
+    return [
+        "--model", "pmnet", "--data", str(mocap), "--out", str(out), "--steps", str(steps),
+        "--batch-size", "4", "--window", "8", "--val-subjects", "s2", "--robots", "op3",
+        "--val-every", "2", "--checkpoint-every", "2", "--log-every", "1",
+        "--model-config", "hidden_size=16", "--model-config", "num_layers=1",
+        "--model-config", "movement_channels=8", "--disc-config", "channels=[4,4,4,4]",
+        "--cache-dir", str(cache), "--threads", "1",
+    ]  # fmt: skip
+
+
+def test_train_eval_resume(mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out, cache = tmp_path / "runs" / "tiny", tmp_path / "cache"
+    assert _run(train_cmd, _train_args(mocap, out, cache, 2)) == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
+    assert summary["steps"] == 2
+    assert "2/2" in captured.err  # the progress bar
+    assert (out / "best.pt").is_file()
+
+    eval_args = ["--data", str(mocap), "--val-subjects", "s2,s3", "--cache-dir", str(cache)]
+    code = _run(
+        eval_cmd,
+        ["--model", "copy", "--model", str(out), "--json", "--max-frames", "10", *eval_args],
+    )
+    assert code == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["subjects"] == ["s2", "s3"]
+    assert report["robots"] == ["op3"]
+    assert [r["model"] for r in report["results"]] == ["copy", str(out / "best.pt")]
+    for r in report["results"]:
+        # The fixture clips share one skeleton, so op3 is each clip's only distinct target.
+        assert r["pairs"] == 2
+        assert r["metrics"]["ee"] is not None
+
+    assert _run(eval_cmd, ["--model", "copy-scaled", "--robot", "none", *eval_args]) == 0
+    table = capsys.readouterr().out
+    assert table.startswith("model")
+    assert "no robot" in table
+
+    assert _run(train_cmd, [*_train_args(mocap, out, cache, 3), "--resume"]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["steps"] == 3
+
+    # The run's checkpoint can be benchmarked like any model.
+    parser = argparse.ArgumentParser()
+    benchmark.configure(parser)
+    args = parser.parse_args(["--model", str(out / "last.pt"), "--frames", "20", "--warmup", "2"])
+    records = benchmark.run(args)
+    assert [(r["mode"], r["weights"]) for r in records] == [
+        ("online", "trained"),
+        ("clip", "trained"),
+    ]
+    assert all(r["median_ms"] > 0 and r["p99_ms"] >= r["median_ms"] for r in records)
+    assert bench_cmd.format_table(records).startswith("model")
+
+
+def test_train_refuses_resuming_another_model(mocap: Path, tmp_path: Path) -> None:
+    out, cache = tmp_path / "run", tmp_path / "cache"
+    assert _run(train_cmd, _train_args(mocap, out, cache, 1)) == 0
+    args = _train_args(mocap, out, cache, 2)
+    args[1] = "nkn"
+    with pytest.raises(RetargetError, match="pass --model pmnet"):
+        _run(train_cmd, [*args, "--resume"])
+
+
+def test_bad_model_config_is_a_clear_error(mocap: Path, tmp_path: Path) -> None:
+    args = _train_args(mocap, tmp_path / "r", tmp_path / "c", 1)
+    with pytest.raises(RetargetError, match="expected KEY=VALUE"):
+        _run(train_cmd, [*args, "--model-config", "oops"])
+
+
+def test_bench_defaults_cover_copy_nkn_pmnet() -> None:
+    parser = argparse.ArgumentParser()
+    benchmark.configure(parser)
+    args = parser.parse_args(["--frames", "5", "--warmup", "1", "--clip-repeats", "1"])
+    records = benchmark.run(args)
+    assert {r["model"] for r in records} == {"copy", "nkn", "pmnet"}
+    assert {"model", "mode", "frames", "median_ms", "p99_ms"} <= set(records[0])

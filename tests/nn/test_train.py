@@ -1,0 +1,150 @@
+"""Training loop: run folder contents, reproducible resume, validation, refusals."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+import torch
+
+from robot_retarget.nn.checkpoint import load_checkpoint
+from robot_retarget.nn.dataset import WindowSampler, load_dataset
+from robot_retarget.nn.models.registry import build_model
+from robot_retarget.nn.train import (
+    TrainConfig,
+    TrainError,
+    TrainProgress,
+    same_skeleton_step,
+    train,
+    validate,
+)
+
+TINY_MODEL = {
+    "nkn": {"hidden_size": 16, "num_layers": 1},
+    "pmnet": {"hidden_size": 16, "num_layers": 2, "movement_channels": 8},
+}
+TINY_DISC = {"nkn": {"channels": [4, 4, 4, 4]}, "pmnet": {"channels": [4, 4, 4, 4]}}
+
+
+def _config(
+    mocap_dir: Path, out: Path, cache: Path, model: str = "pmnet", steps: int = 3
+) -> TrainConfig:
+    return TrainConfig(
+        model=model,
+        data_dir=str(mocap_dir),
+        out_dir=str(out),
+        steps=steps,
+        batch_size=4,
+        window_frames=8,
+        validation_subjects=("s2",),
+        robots=("op3",),
+        val_every=2,
+        val_batches=1,
+        checkpoint_every=2,
+        log_every=1,
+        model_config=TINY_MODEL[model],
+        discriminator_config=TINY_DISC[model],
+        cache_dir=str(cache),
+        lr=1e-3,
+    )
+
+
+def test_run_folder_holds_checkpoints_and_logs(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    seen: list[TrainProgress] = []
+    cfg = _config(mocap_dir, tmp_path / "run", cache_dir)
+    result = train(cfg, progress=seen.append, command="python launch.py train ...")
+    out = tmp_path / "run"
+    for name in ("config.json", "last.pt", "best.pt", "trainer_state.pt", "log.csv"):
+        assert (out / name).is_file(), name
+    assert list(out.glob("events.out.tfevents.*"))
+    assert result.steps == 3
+    assert [p.step for p in seen] == [1, 2, 3]
+    assert seen[1].validation is not None
+    assert "score" in seen[1].validation
+    ckpt = load_checkpoint(result.last_path, expected_data_hash=result.data_hash)
+    assert ckpt.metadata["step"] == 3
+    assert ckpt.metadata["validation_subjects"] == ["s2"]
+    assert ckpt.metadata["train_config"]["model_config"] == TINY_MODEL["pmnet"]
+    assert {"subject:s1", "subject:s3", "robot:op3"} <= set(ckpt.skeletons)
+    assert "subject:s2" not in ckpt.skeletons
+    rows = list(csv.DictReader((out / "log.csv").open()))
+    assert {r["split"] for r in rows} == {"train", "val"}
+    assert {"total", "reconstruction"} <= {r["metric"] for r in rows if r["split"] == "train"}
+    saved = json.loads((out / "config.json").read_text())
+    assert saved["data_hash"] == result.data_hash
+
+
+def test_resume_continues_exactly_like_an_uninterrupted_run(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    straight = train(_config(mocap_dir, tmp_path / "a", cache_dir, steps=4))
+    cfg = _config(mocap_dir, tmp_path / "b", cache_dir, steps=2)
+    train(cfg)
+    resumed = train(dataclasses.replace(cfg, steps=4), resume=True)
+    assert resumed.steps == 4
+    a = load_checkpoint(straight.last_path).model.state_dict()
+    b = load_checkpoint(resumed.last_path).model.state_dict()
+    for key in a:
+        torch.testing.assert_close(a[key], b[key], rtol=0, atol=1e-6, msg=key)
+
+
+def test_nkn_trains_with_real_target_motion(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    result = train(_config(mocap_dir, tmp_path / "nkn", cache_dir, model="nkn", steps=2))
+    assert load_checkpoint(result.best_path).model.name == "nkn"
+
+
+def test_refuses_to_overwrite_untrainable_models_and_bad_resume(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    cfg = _config(mocap_dir, tmp_path / "run", cache_dir, steps=1)
+    train(cfg)
+    with pytest.raises(TrainError, match="pass --resume"):
+        train(cfg)
+    with pytest.raises(TrainError, match="cannot resume"):
+        train(dataclasses.replace(cfg, model="nkn", model_config={}), resume=True)
+    with pytest.raises(TrainError, match="nothing to resume"):
+        train(dataclasses.replace(cfg, out_dir=str(tmp_path / "empty")), resume=True)
+    with pytest.raises(TrainError, match="cannot be trained"):
+        train(dataclasses.replace(cfg, model="copy"))
+
+
+def test_validation_of_copy_is_exact_on_same_skeleton(mocap_dir: Path, cache_dir: Path) -> None:
+    data = load_dataset(mocap_dir, cache_dir=cache_dir)
+    batch = WindowSampler(data, window_frames=8, batch_size=4).sample(0)
+    metrics = validate(build_model("copy"), [batch])
+    assert metrics["recon"] == pytest.approx(0.0, abs=1e-9)
+    assert metrics["cycle"] == pytest.approx(0.0, abs=1e-9)
+    assert metrics["score"] == pytest.approx(metrics["ee"])
+
+
+def test_same_skeleton_reconstruction_option(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    seen: list[TrainProgress] = []
+    cfg = dataclasses.replace(
+        _config(mocap_dir, tmp_path / "run", cache_dir, steps=2), same_skeleton_recon=1.0
+    )
+    train(cfg, progress=seen.append)
+    assert all("same_recon" in p.losses for p in seen)
+    assert all(p.losses["same_recon"] >= 0.0 for p in seen)
+    saved = load_checkpoint(tmp_path / "run" / "last.pt").metadata["train_config"]
+    assert saved["same_skeleton_recon"] == 1.0
+
+
+def test_same_skeleton_step_lowers_the_same_skeleton_error(
+    mocap_dir: Path, cache_dir: Path
+) -> None:
+    data = load_dataset(mocap_dir, cache_dir=cache_dir)
+    batch = WindowSampler(data, window_frames=8, batch_size=8, seed=1).sample(0)
+    torch.manual_seed(0)
+    model = build_model("pmnet", dropout=0.0, **TINY_MODEL["pmnet"])
+    optimizer = torch.optim.Adam(model.parameters(), lr=1e-2)
+    losses = [same_skeleton_step(model, batch, optimizer, 1.0) for _ in range(30)]
+    assert losses[-1] < 0.5 * losses[0]
