@@ -1,0 +1,205 @@
+"""``convert INPUT --robot ROBOT --out OUT``: human clip(s) → robot trajectory file(s).
+
+INPUT is a BVH file or a folder (every .bvh inside is converted, the folder structure kept
+under OUT). Each frame goes through the live path's step (network → optimizer → safety), see
+robot_retarget.pipeline.convert. Existing outputs are kept unless --force; a clip that fails is
+reported and the others still convert; the exit code is 1 when any clip failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+from robot_retarget.errors import MotionFormatError, RetargetError
+
+NAME = "convert"
+HELP = "Retarget BVH clip(s) to a robot trajectory (.npz/.csv/.json), preview, robot BVH."
+
+_FORMATS = (".npz", ".csv", ".json")
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("input", type=Path, help="BVH file, or a folder of BVH files")
+    parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
+    parser.add_argument(
+        "--out", type=Path, required=True, help="OUT.npz|.csv|.json (a folder for folder input)"
+    )
+    parser.add_argument(
+        "--format",
+        choices=[f[1:] for f in _FORMATS],
+        default="npz",
+        help="file format for folder input (default npz)",
+    )
+    parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    parser.add_argument(
+        "--fps", type=float, help="output frame rate (default: the robot's control rate)"
+    )
+    parser.add_argument("--preview", type=Path, help="OUT.gif|.mp4 (a folder for folder input)")
+    parser.add_argument(
+        "--bvh-out", type=Path, help="robot motion as BVH (a folder for folder input)"
+    )
+    parser.add_argument("--max-frames", type=int, help="convert only the first N frames")
+    parser.add_argument("--force", action="store_true", help="replace existing outputs")
+
+
+@dataclass(frozen=True)
+class ClipReport:
+    clip: Path
+    out: Path
+    frames: int = 0
+    wall_s: float = 0.0
+    limits_ok: bool = False
+    clipped_commands: int = 0
+    clipped_joints: int = 0
+    fallbacks: int = 0
+    error: str | None = None
+
+
+class ProgressBar:
+    """A one-line text progress bar on stderr, redrawn in place on a terminal (at most ~50
+    times per task); only the final line when stderr is a file."""
+
+    def __init__(self, label: str, *, width: int = 30, stream: TextIO | None = None) -> None:
+        self.label = label
+        self.width = width
+        self.stream = stream if stream is not None else sys.stderr
+        self._last = -1
+        self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
+
+    def __call__(self, done: int, total: int) -> None:
+        step = max(1, total // 50)
+        if done != total and (done - self._last < step or not self._tty):
+            return  # not a terminal (a log file): only the final line
+        self._last = done
+        filled = self.width * done // max(total, 1)
+        bar = "#" * filled + "-" * (self.width - filled)
+        pct = 100 * done // max(total, 1)
+        end = "\n" if done >= total else ""
+        prefix = "\r" if self._tty else ""
+        self.stream.write(f"{prefix}{self.label} [{bar}] {pct:3d}% ({done}/{total}){end}")
+        self.stream.flush()
+
+
+def _extra_path(base: Path | None, clip: Path, root: Path, suffix: str) -> Path | None:
+    if base is None:
+        return None
+    if root.is_dir():
+        return base / clip.relative_to(root).with_suffix(suffix)
+    return base
+
+
+def _check_outputs(paths: list[Path | None], force: bool) -> None:
+    for p in paths:
+        if p is not None and p.exists() and not force:
+            raise MotionFormatError("the output already exists; pass --force to replace it", path=p)
+
+
+def run(args: argparse.Namespace) -> int:
+    from robot_retarget.motion.human_motion import load_motion
+    from robot_retarget.nn.inference import load_model
+    from robot_retarget.pipeline.convert import convert_motion, output_paths
+    from robot_retarget.pipeline.defaults import default_model_name
+    from robot_retarget.pipeline.robot_bvh import write_robot_bvh
+    from robot_retarget.pipeline.step import RetargetStep
+    from robot_retarget.render.preview import check_preview_path, render_preview
+    from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.skeleton.canonical import default_canonical_skeleton
+
+    src: Path = args.input
+    if not src.exists():
+        raise MotionFormatError("no such file or folder", path=src)
+    if src.is_dir():
+        suffix = "." + args.format
+    else:
+        suffix = args.out.suffix.lower()
+        if suffix not in _FORMATS:
+            raise MotionFormatError(
+                f"output must end in {', '.join(_FORMATS)}, got {suffix or '(none)'!r}",
+                path=args.out,
+            )
+    if args.fps is not None and not args.fps > 0:
+        raise RetargetError(f"--fps must be positive, got {args.fps}")
+    pairs = output_paths(src, args.out, suffix)
+    if not pairs:
+        raise MotionFormatError("no .bvh files in this folder", path=src)
+    config = load_robot_config(args.robot)
+    model = load_model(args.model or default_model_name())
+    print(f"robot {config.name}, model {model.name}, {len(pairs)} clip(s)", file=sys.stderr)
+    step = RetargetStep(config, model, default_canonical_skeleton())
+    reports: list[ClipReport] = []
+    t_all = time.perf_counter()
+    for k, (clip, out) in enumerate(pairs):
+        preview = _extra_path(args.preview, clip, src, ".gif")
+        bvh_out = _extra_path(args.bvh_out, clip, src, ".bvh")
+        try:
+            _check_outputs([out, preview, bvh_out], args.force)
+            if preview is not None:
+                check_preview_path(preview, overwrite=args.force)
+            motion = load_motion(clip, max_frames=args.max_frames)
+            label = f"[{k + 1}/{len(pairs)}] {clip.name}"
+            result = convert_motion(motion, step, fps=args.fps, progress=ProgressBar(label))
+            out.parent.mkdir(parents=True, exist_ok=True)
+            result.trajectory.write(out, overwrite=args.force)
+            if bvh_out is not None:
+                bvh_out.parent.mkdir(parents=True, exist_ok=True)
+                write_robot_bvh(bvh_out, config, result.trajectory, overwrite=args.force)
+            if preview is not None:
+                preview.parent.mkdir(parents=True, exist_ok=True)
+                render_preview(
+                    preview,
+                    motion.positions(),
+                    motion.fps,
+                    config,
+                    result.trajectory.q,
+                    result.trajectory.fps,
+                    title=f"{clip.name} → {config.name} ({model.name})",
+                    overwrite=args.force,
+                )
+            reports.append(
+                ClipReport(
+                    clip,
+                    out,
+                    result.frames,
+                    result.wall_s,
+                    result.limits.ok,
+                    result.safety_commands_clipped,
+                    result.safety_joint_clips,
+                    result.fallbacks,
+                )
+            )
+        except (RetargetError, OSError, ValueError) as exc:
+            print(f"error: {clip}: {exc}", file=sys.stderr)
+            reports.append(ClipReport(clip, out, error=str(exc)))
+    print(format_summary(reports, time.perf_counter() - t_all))
+    return 1 if any(r.error for r in reports) else 0
+
+
+def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
+    ok = [r for r in reports if r.error is None]
+    frames = sum(r.frames for r in ok)
+    compute = sum(r.wall_s for r in ok)
+    lines = ["", "summary:"]
+    for r in reports:
+        if r.error is not None:
+            lines.append(f"  FAILED {r.clip}: {r.error}")
+        else:
+            lines.append(
+                f"  {r.out}: {r.frames} frames, {r.wall_s:.2f} s "
+                f"({r.frames / max(r.wall_s, 1e-9):.0f} frames/s), limits "
+                f"{'respected' if r.limits_ok else 'VIOLATED'}, safety clipped "
+                f"{r.clipped_commands} commands ({r.clipped_joints} joint values), "
+                f"{r.fallbacks} solver fallbacks"
+            )
+    lines.append(
+        f"  total: {len(ok)} of {len(reports)} clips, {frames} frames, wall time "
+        f"{total_wall_s:.2f} s, {frames / max(compute, 1e-9):.0f} frames/s, limits "
+        f"{'respected' if all(r.limits_ok for r in ok) else 'VIOLATED'}, safety clipped "
+        f"{sum(r.clipped_commands for r in ok)} commands, "
+        f"{sum(r.fallbacks for r in ok)} solver fallbacks"
+    )
+    return "\n".join(lines)

@@ -1,0 +1,52 @@
+"""Backends by name for the CLI: ``sim`` (kinematic simulator) or ``dynamixel`` (a real bus).
+
+``ports`` for Dynamixel: ``["/dev/ttyUSB0"]`` for a one-bus robot, or ``["upper=/dev/ttyUSB0",
+"lower=/dev/ttyUSB1"]`` naming the config's buses. Signal handling stays with the control loop
+(it stops smoothly on Ctrl-C), so the backend's own SIGINT handler is not installed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from robot_retarget.errors import HardwareError
+from robot_retarget.hardware.backend import JointBackend
+from robot_retarget.robot.config import RobotConfig
+
+BACKENDS: tuple[str, ...] = ("sim", "dynamixel")
+
+
+def parse_ports(config: RobotConfig, ports: Sequence[str]) -> dict[str, str]:
+    """``PATH`` (one-bus robots) or ``BUS=PATH`` items → {bus name: port}."""
+    names = [b.name for b in config.buses]
+    out: dict[str, str] = {}
+    for item in ports:
+        if "=" in item:
+            bus, path = item.split("=", 1)
+            if bus not in names:
+                raise HardwareError(
+                    f"--port {item}: robot {config.name} has no bus {bus!r}; buses: {names}"
+                )
+            out[bus] = path
+        elif len(names) == 1:
+            out[names[0]] = item
+        else:
+            raise HardwareError(
+                f"robot {config.name} has {len(names)} buses {names}: give --port BUS=PATH"
+            )
+    return out
+
+
+def open_backend(config: RobotConfig, kind: str, ports: Sequence[str] = ()) -> JointBackend:
+    """An unconnected backend (the control loop connects it behind its safety layer)."""
+    if kind == "sim":
+        from robot_retarget.hardware.sim_backend import SimBackend
+
+        return SimBackend(config)
+    if kind == "dynamixel":
+        from robot_retarget.hardware.bus import buses_from_config
+        from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
+
+        buses = buses_from_config(config, parse_ports(config, ports))
+        return DynamixelBackend(config, buses, handle_signals=False)
+    raise HardwareError(f"unknown backend {kind!r}; choose one of {', '.join(BACKENDS)}")

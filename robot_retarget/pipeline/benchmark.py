@@ -1,0 +1,105 @@
+"""``bench pipeline``: compute time per frame of the live path, stage by stage.
+
+Stages, per frame of the built-in demo clip at the robot's control rate: ``decode`` (a binary
+UDP rotations packet → a checked SourceFrame, as the receiver thread does), ``network`` (the
+model's online step), ``targets`` (rotations → optimizer targets), ``optimizer``
+(Retargeter.solve, warm-started), ``safety`` (SafetyLayer clamp) and ``total`` (their sum per
+frame). ``--positions`` decodes position packets instead (adds the minimal-twist solver).
+Pin to one core for the figure that matters: ``taskset -c 1 python launch.py bench pipeline``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from typing import Any
+
+from robot_retarget.bench_stats import TimingStats
+
+HELP = "Per-frame compute time of the live path: decode, network, targets, optimizer, safety."
+
+STAGES: tuple[str, ...] = ("decode", "network", "targets", "optimizer", "safety", "total")
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
+    parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    parser.add_argument("--frames", type=int, default=3000, help="timed frames")
+    parser.add_argument("--warmup", type=int, default=200, help="untimed frames first")
+    parser.add_argument(
+        "--positions", action="store_true", help="decode position packets (+ rotation solver)"
+    )
+
+
+def run(args: argparse.Namespace) -> list[dict[str, Any]]:
+    from robot_retarget.hardware.safety import SafetyLayer
+    from robot_retarget.hardware.types import JointCommand
+    from robot_retarget.motion.synthetic import demo_motion
+    from robot_retarget.nn.inference import load_model
+    from robot_retarget.optimize import targets_from_rotations
+    from robot_retarget.pipeline.defaults import default_model_name
+    from robot_retarget.pipeline.recorder import RecordingBackend
+    from robot_retarget.pipeline.step import RetargetStep
+    from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.sources import wire
+    from robot_retarget.sources.udp import UdpSource
+
+    if args.frames < 1 or args.warmup < 0:
+        raise ValueError("--frames must be ≥ 1 and --warmup ≥ 0")
+    config = load_robot_config(args.robot)
+    rate = config.control_rate_hz
+    dt = 1.0 / rate
+    motion = demo_motion(fps=rate)
+    positions = motion.positions()
+    model = load_model(args.model or default_model_name())
+    receiver = UdpSource(skeleton=motion.skeleton)  # never started: decode path only
+    step = RetargetStep(config, model, motion.skeleton)
+    step.retargeter.warm_up()
+    step.reset(config.init_pose)
+    safety = SafetyLayer(
+        dataclasses.replace(config, control_rate_hz=rate), RecordingBackend(config)
+    )
+    safety.connect()
+    kind = wire.KIND_POSITIONS if args.positions else wire.KIND_ROTATIONS
+    problem = step.retargeter.problem
+    times: dict[str, list[float]] = {s: [] for s in STAGES}
+    n = motion.num_frames
+    for k in range(args.warmup + args.frames):
+        i = k % n
+        values = positions[i] if args.positions else motion.local_quats[i]
+        root = None if args.positions else motion.root_pos[i]
+        packet = wire.encode_binary(kind, k, k * dt, values, root)
+        t0 = time.perf_counter()
+        frame = receiver.handle_packet(packet, t0)
+        t1 = time.perf_counter()
+        if frame is None:
+            raise RuntimeError(f"benchmark packet {k} was dropped: {receiver.stats.summary()}")
+        quats, root_pos = step.online.step(frame.local_quats, frame.root_pos)
+        t2 = time.perf_counter()
+        targets = targets_from_rotations(
+            problem, step.robot_skeleton, quats[None], root_pos=root_pos[None]
+        ).frame(0)
+        t3 = time.perf_counter()
+        result = step.retargeter.solve(targets, dt)
+        t4 = time.perf_counter()
+        safety.send(JointCommand(result.q, k * dt * (1.0 + 1e-9)))
+        t5 = time.perf_counter()
+        receiver.poll(t5)  # keep the receiver's queue empty, as the loop does
+        if k >= args.warmup:
+            spans = (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0)
+            for name, d in zip(STAGES, spans, strict=True):
+                times[name].append(d)
+    records: list[dict[str, Any]] = []
+    for name in STAGES:
+        stats = TimingStats.from_seconds(times[name])
+        records.append(
+            {
+                "stage": name,
+                "median_ms": stats.median_ms,
+                "p99_ms": stats.p99_ms,
+                "mean_ms": stats.mean_ms,
+                "runs": stats.runs,
+            }
+        )
+    return records

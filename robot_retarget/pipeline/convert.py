@@ -1,0 +1,141 @@
+"""Offline conversion: a human clip → a robot trajectory, with the live path's per-frame step.
+
+Each frame goes through exactly what ``stream`` sends to a servo: the network's online step,
+the optimizer (Retargeter.solve, warm-started frame by frame) and the SafetyLayer, with the
+file's frame period as the control period. We do not use Retargeter.solve_clip here (windows
+solved jointly are 15–30 % smoother, see robot_retarget.optimize) so that a converted file and
+a live stream of the same clip at the same rate give the same joint angles; every frame in the
+file is checked against the joint limits and the velocity limits (from the init pose).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.hardware.safety import SafetyLayer
+from robot_retarget.hardware.types import JointCommand
+from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.motion.trajectory import RobotTrajectory
+from robot_retarget.pipeline.recorder import RecordingBackend
+from robot_retarget.pipeline.step import RetargetStep
+from robot_retarget.robot.config import RobotConfig
+
+FloatArray = npt.NDArray[np.float64]
+
+_LIMIT_TOL_RAD = 1e-9
+# Command stamps 1 ppb apart more than dt: the safety layer then bounds each step by exactly
+# v_max · dt (its min(Δt, period)), the optimizer's bound, instead of a rounded-down Δt that
+# would "clip" 1e-14 rad off every step at the velocity limit.
+_STAMP_STRETCH = 1.0 + 1e-9
+
+
+@dataclass(frozen=True)
+class LimitCheck:
+    """Largest excess (rad) over the joint limits and over ``v_max · dt`` between frames."""
+
+    position_excess_rad: float
+    velocity_excess_rad: float
+
+    @property
+    def ok(self) -> bool:
+        return max(self.position_excess_rad, self.velocity_excess_rad) <= _LIMIT_TOL_RAD
+
+
+def check_limits(
+    config: RobotConfig, q: npt.ArrayLike, dt_s: float, q_start: npt.ArrayLike | None = None
+) -> LimitCheck:
+    """Check a (T, J) trajectory against the config's position and velocity limits."""
+    a = np.asarray(q, dtype=np.float64)
+    above = float(np.max(a - config.upper, initial=0.0))
+    below = float(np.max(config.lower - a, initial=0.0))
+    pos = max(0.0, above, below)
+    start = config.init_pose if q_start is None else np.asarray(q_start, dtype=np.float64)
+    steps = np.abs(np.diff(np.vstack([start[None], a]), axis=0))
+    vel = max(0.0, float(np.max(steps - config.max_velocity * dt_s, initial=0.0)))
+    return LimitCheck(pos, vel)
+
+
+@dataclass(frozen=True)
+class ClipResult:
+    """A converted clip and what happened on the way."""
+
+    trajectory: RobotTrajectory
+    wall_s: float
+    limits: LimitCheck
+    safety_commands_clipped: int
+    safety_joint_clips: int
+    fallbacks: int
+
+    @property
+    def frames(self) -> int:
+        return self.trajectory.num_frames
+
+
+def convert_motion(
+    motion: HumanMotion,
+    step: RetargetStep,
+    *,
+    fps: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> ClipResult:
+    """Retarget ``motion`` frame by frame at ``fps`` (default: the robot's control rate)."""
+    config = step.config
+    rate = float(fps) if fps is not None else config.control_rate_hz
+    m = motion if abs(motion.fps - rate) < 1e-9 else motion.resample(rate)
+    dt = 1.0 / rate
+    # The file's frame period is its control period: the safety layer's step bound uses it.
+    file_config = dataclasses.replace(config, control_rate_hz=rate)
+    safety = SafetyLayer(file_config, RecordingBackend(config))
+    safety.connect()
+    step.set_source(m.skeleton)
+    step.reset(config.init_pose)
+    n = m.num_frames
+    q = np.empty((n, config.num_joints))
+    root_pos = np.empty((n, 3))
+    root_quat = np.empty((n, 4))
+    frame_ms = np.empty(n)
+    t_start = time.perf_counter()
+    for t in range(n):
+        t0 = time.perf_counter()
+        out = step(m.local_quats[t], m.root_pos[t], dt)
+        sent = safety.send(JointCommand(out.q, t * dt * _STAMP_STRETCH))
+        frame_ms[t] = (time.perf_counter() - t0) * 1e3
+        q[t] = sent.q
+        root_pos[t] = out.root_pos
+        root_quat[t] = out.root_quat
+        if progress is not None:
+            progress(t + 1, n)
+    wall = time.perf_counter() - t_start
+    safety.disconnect()
+    traj = RobotTrajectory(
+        joint_names=config.joint_names,
+        q=q,
+        fps=rate,
+        root_pos=root_pos,
+        root_quat=root_quat,
+        t0=0.0,
+        frame_ms=frame_ms,
+    )
+    return ClipResult(
+        trajectory=traj,
+        wall_s=wall,
+        limits=check_limits(config, q, dt),
+        safety_commands_clipped=safety.stats.commands_clipped,
+        safety_joint_clips=safety.stats.position_clips + safety.stats.step_clips,
+        fallbacks=step.stats.fallbacks,
+    )
+
+
+def output_paths(input_path: Path, out: Path, suffix: str) -> list[tuple[Path, Path]]:
+    """(clip, output) pairs: one file, or every .bvh under a folder with its structure kept."""
+    if input_path.is_dir():
+        clips = sorted(p for p in input_path.rglob("*") if p.suffix.lower() == ".bvh")
+        return [(c, out / c.relative_to(input_path).with_suffix(suffix)) for c in clips]
+    return [(input_path, out)]

@@ -1,0 +1,346 @@
+"""The fixed-rate control loop: source → interpolation → RetargetStep → safety → backend.
+
+One thread (the caller's) owns the backend; sources receive on their own threads. Each tick
+(default: the robot config's ``control_rate_hz``) drains the source, samples the interpolated
+human pose and sends one command. Modes:
+
+- WAITING: no input yet; nothing is sent (the robot stays as it is, torque untouched).
+- RAMP_IN: from the present pose toward the retargeted trajectory at ``ramp_speed_fraction``
+  of each joint's max velocity, until every joint is within ``catch_up_rad`` of it (start-up,
+  and after the safe pose), or after ``ramp_timeout_s`` (a motion too fast to catch); tracking
+  then goes on from the ramp's pose at the optimizer's velocity limits.
+- TRACKING: the retargeted command, every tick.
+- HOLD: input silent for more than ``hold_after_s`` (200 ms): the last command is held.
+- SAFE: silent for more than ``safe_after_s`` (2 s): move to the config's safe pose at the ramp
+  speed; there, the torque goes off when the config says ``torque_off_at_safe_pose``.
+
+Ctrl-C (KeyboardInterrupt), the end of ``duration_s`` or the end of a finite source stops
+smoothly: the robot moves to the safe pose at the ramp speed (at most ``stop_timeout_s``), then
+the backend disconnects, which switches the torque off. A second Ctrl-C skips the move.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.hardware.backend import JointBackend
+from robot_retarget.hardware.safety import ClipStats, SafetyLayer
+from robot_retarget.hardware.types import JointCommand
+from robot_retarget.pipeline.interpolation import FrameInterpolator
+from robot_retarget.pipeline.live_stats import LiveStats, StatsSnapshot
+from robot_retarget.pipeline.step import RetargetStep, StepStats
+from robot_retarget.sources.base import MotionSource
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class Mode(str, enum.Enum):
+    WAITING = "waiting"
+    RAMP_IN = "ramp-in"
+    TRACKING = "tracking"
+    HOLD = "hold"
+    SAFE = "safe"
+    STOPPING = "stopping"
+
+
+@runtime_checkable
+class TorqueSwitch(Protocol):
+    """A backend that can release the servos without disconnecting (Dynamixel)."""
+
+    def torque_off(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    rate_hz: float | None = None  # None: the robot config's control_rate_hz
+    hold_after_s: float = 0.2
+    safe_after_s: float = 2.0
+    ramp_speed_fraction: float = 0.25
+    stop_timeout_s: float = 3.0
+    ramp_timeout_s: float = 3.0
+    catch_up_rad: float = 0.05  # ramp ends when every joint is this close to the motion
+    report_every_s: float = 5.0
+    duration_s: float | None = None
+    delay_periods: float = 1.0  # playout delay, in (measured) input frame periods
+
+    def __post_init__(self) -> None:
+        if self.rate_hz is not None and not self.rate_hz > 0:
+            raise ValueError(f"rate_hz must be positive, got {self.rate_hz}")
+        if not 0.0 < self.ramp_speed_fraction <= 1.0:
+            raise ValueError(
+                f"ramp_speed_fraction must be in (0, 1], got {self.ramp_speed_fraction}"
+            )
+        if not 0.0 < self.hold_after_s < self.safe_after_s:
+            raise ValueError("need 0 < hold_after_s < safe_after_s")
+
+
+@dataclass(frozen=True)
+class LogEntry:
+    """One tick: loop time, the sender-time it played, the mode and the command (rad) handed to
+    the backend after the safety layer (before any rounding to servo ticks)."""
+
+    t_s: float
+    play_t_s: float
+    mode: Mode
+    q: FloatArray
+
+
+@dataclass
+class LoopResult:
+    stats: StatsSnapshot
+    safety: ClipStats
+    step: StepStats
+    interrupted: bool
+    transitions: list[tuple[float, Mode]] = field(default_factory=list)
+    log: list[LogEntry] = field(default_factory=list)
+    torque_released: bool = False
+
+
+def _toward(q: FloatArray, goal: FloatArray, step: FloatArray) -> FloatArray:
+    return q + np.clip(goal - q, -step, step)
+
+
+class ControlLoop:
+    """Runs a source through a RetargetStep into a backend (always behind a SafetyLayer)."""
+
+    def __init__(
+        self,
+        step: RetargetStep,
+        source: MotionSource,
+        backend: JointBackend,
+        settings: LoopSettings | None = None,
+        *,
+        report: Callable[[str], None] | None = None,
+        record: bool = False,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        self.step = step
+        self.config = step.config
+        self.source = source
+        self.settings = settings or LoopSettings()
+        rate = self.settings.rate_hz or self.config.control_rate_hz
+        self.period_s = 1.0 / rate
+        # The loop's period is the safety layer's control period (its step bound).
+        loop_config = dataclasses.replace(self.config, control_rate_hz=rate)
+        self.safety = (
+            backend if isinstance(backend, SafetyLayer) else SafetyLayer(loop_config, backend)
+        )
+        self.report = report or (lambda _line: None)
+        self.record = record
+        self.clock = clock
+        self.sleep = sleep
+        self.stats = LiveStats()
+        self.mode = Mode.WAITING
+        self.transitions: list[tuple[float, Mode]] = []
+        self.log: list[LogEntry] = []
+        fraction = self.settings.ramp_speed_fraction
+        self._ramp_step = self.config.max_velocity * fraction * self.period_s
+        self._q_cmd: FloatArray = np.array(self.config.init_pose, dtype=np.float64)
+        self._released = False
+        self._ever_released = False
+        self._sent_any = False
+        self._last_seq: int | None = None
+        self._ramp_start = 0.0
+        self._k = 0  # tick counter: command stamps are k periods apart
+
+    # ----------------------------------------------------------------------------- helpers
+    def _set_mode(self, mode: Mode, now: float, why: str) -> None:
+        if mode is not self.mode:
+            self.mode = mode
+            self.transitions.append((now, mode))
+            self.report(f"[{mode.value}] {why}")
+
+    def _send(self, q: FloatArray, now: float, play_t: float) -> None:
+        # Stamps 1 ppb more than a period apart: the safety layer bounds each step by exactly
+        # v_max · period, the optimizer's bound (see convert.py).
+        stamp = self._k * self.period_s * (1.0 + 1e-9)
+        # As SafetyLayer.send, in two steps: the loop keeps the safe command itself, not the
+        # backend's echo (rounded to servo ticks), so its state never drifts by rounding.
+        safe = self.safety.clamp(JointCommand(q, stamp))
+        self.safety.backend.send(safe)
+        self._q_cmd = np.array(safe.q, dtype=np.float64)
+        self._sent_any = True
+        self.stats.commands += 1
+        if self.record:
+            self.log.append(LogEntry(now, play_t, self.mode, self._q_cmd))
+
+    def _present(self) -> FloatArray:
+        return np.array(self.safety.read_state().q, dtype=np.float64)
+
+    def _release(self) -> None:
+        inner = self.safety.backend
+        if isinstance(inner, TorqueSwitch):
+            inner.torque_off()
+            self._released = True
+            self._ever_released = True
+            self.report("[safe] at the safe pose: torque off (torque_off_at_safe_pose)")
+
+    # ----------------------------------------------------------------------------- run
+    def run(self) -> LoopResult:
+        """Connect, stream until stopped, stop smoothly, disconnect (torque off).
+
+        Any error stops the loop too: the backend still disconnects (torque off) and the
+        source still stops before the error propagates.
+        """
+        interrupted = False
+        self.safety.connect()
+        try:
+            try:
+                self._stream()
+            except KeyboardInterrupt:
+                interrupted = True
+                self.report("interrupted: stopping smoothly (Ctrl-C again to switch off at once)")
+            try:
+                self._smooth_stop()
+            except KeyboardInterrupt:
+                interrupted = True
+        finally:
+            try:
+                self.safety.disconnect()
+            finally:
+                self.source.stop()
+        snapshot = self.stats.snapshot(self.source.stats)
+        self.report(snapshot.line())
+        return LoopResult(
+            stats=snapshot,
+            safety=self.safety.stats,
+            step=self.step.stats,
+            interrupted=interrupted,
+            transitions=list(self.transitions),
+            log=self.log,
+            torque_released=self._ever_released,
+        )
+
+    def _stream(self) -> None:
+        s = self.settings
+        self._q_cmd = self._present()
+        self.source.start()
+        # Known once started (a tcp-bvh stream sends its skeleton in the header).
+        self.step.set_source(self.source.skeleton)
+        self.step.warm_up()
+        interp = FrameInterpolator(
+            s.delay_periods / self.source.nominal_fps, adapt_periods=s.delay_periods
+        )
+        start = self.clock()
+        next_tick = start
+        last_report = start
+        last_recv = start
+        while True:
+            now = self.clock()
+            self.stats.ticks += 1
+            self.stats.jitter_s.append(max(0.0, now - next_tick))
+            for frame in self.source.poll(now):
+                interp.push(frame, now)
+                last_recv = max(last_recv, frame.recv_s)
+            self.stats.late_frames = interp.late_frames
+            if s.duration_s is not None and now - start >= s.duration_s:
+                return
+            newest = interp.newest
+            if self.source.finished and (newest is None or interp.play_time(now) > newest.t_s):
+                return
+            self._tick(now, interp, now - last_recv)
+            if now - last_report >= s.report_every_s:
+                last_report = now
+                self.report(self.stats.snapshot(self.source.stats).line())
+            next_tick += self.period_s
+            self._k += 1
+            after = self.clock()
+            if after > next_tick + self.period_s:
+                missed = int((after - next_tick) / self.period_s)
+                self.stats.overruns += missed
+                next_tick += missed * self.period_s
+                self._k += missed
+            wait = next_tick - self.clock()
+            if wait > 0:
+                self.sleep(wait)
+
+    def _tick(self, now: float, interp: FrameInterpolator, silence_s: float) -> None:
+        s = self.settings
+        if interp.empty:
+            return
+        if self.mode is Mode.WAITING:
+            self._start_ramp(now, "first input frame: ramping from the present pose")
+        elif self.mode in (Mode.TRACKING, Mode.RAMP_IN) and silence_s > s.hold_after_s:
+            self._set_mode(Mode.HOLD, now, f"input silent {silence_s:.2f} s: holding the pose")
+        elif self.mode is Mode.HOLD and silence_s > s.safe_after_s:
+            self._set_mode(Mode.SAFE, now, f"input silent {silence_s:.1f} s: to the safe pose")
+        elif self.mode is Mode.HOLD and silence_s <= s.hold_after_s:
+            # The optimizer goes on from the held command (its velocity box is centred there).
+            self.step.retargeter.reset(self._q_cmd)
+            self._set_mode(Mode.TRACKING, now, "input back: tracking")
+        elif self.mode is Mode.SAFE and silence_s <= s.hold_after_s:
+            if self._released:
+                self._q_cmd = self._present()
+                self.safety.reset(self._q_cmd)
+                self._released = False
+            self._start_ramp(now, "input back: ramping from the present pose")
+
+        if self.mode is Mode.HOLD:
+            self._send(self._q_cmd, now, interp.play_time(now))
+        elif self.mode is Mode.SAFE:
+            if self._released:
+                return
+            q = _toward(self._q_cmd, self.config.safe_pose, self._ramp_step)
+            self._send(q, now, interp.play_time(now))
+            reached = np.max(np.abs(self.config.safe_pose - self._q_cmd)) < 1e-6
+            if reached and self.config.hardware.torque_off_at_safe_pose:
+                self._release()
+        else:
+            self._track(now, interp)
+
+    def _start_ramp(self, now: float, why: str) -> None:
+        self.step.reset(self._q_cmd)
+        self._ramp_start = now
+        self._set_mode(Mode.RAMP_IN, now, why)
+
+    def _track(self, now: float, interp: FrameInterpolator) -> None:
+        sample = interp.sample(now)
+        if sample is None:
+            return
+        out = self.step(sample.local_quats, sample.root_pos, self.period_s)
+        q = out.q
+        if self.mode is Mode.RAMP_IN:
+            # Pursue the trajectory tracking would send, at the ramp speed, until caught up.
+            q = _toward(self._q_cmd, out.q, self._ramp_step)
+            gap = np.abs(out.q - self._q_cmd)
+            if np.all(gap <= self._ramp_step):
+                self._set_mode(Mode.TRACKING, now, "caught up with the motion: tracking")
+            elif np.all(gap <= self.settings.catch_up_rad) or (
+                now - self._ramp_start > self.settings.ramp_timeout_s
+            ):
+                # Close enough (or a motion too fast to catch): the optimizer goes on from the
+                # ramp's pose at its velocity limits.
+                self.step.retargeter.reset(q)
+                self._set_mode(Mode.TRACKING, now, "ramp done: tracking")
+        if sample.late:
+            self.stats.late_ticks += 1
+        self._send(q, now, sample.play_t_s)
+        if sample.newest.seq != self._last_seq:
+            self._last_seq = sample.newest.seq
+            self.stats.latency_s.append(self.clock() - sample.newest.recv_s)
+
+    def _smooth_stop(self) -> None:
+        if not self._sent_any or self._released or not self.safety.connected:
+            return
+        now = self.clock()
+        self._set_mode(Mode.STOPPING, now, "moving to the safe pose, then torque off")
+        deadline = now + self.settings.stop_timeout_s
+        goal = self.config.safe_pose
+        next_tick = now
+        while np.max(np.abs(goal - self._q_cmd)) > 1e-6 and self.clock() < deadline:
+            q = _toward(self._q_cmd, goal, self._ramp_step)
+            self._send(q, self.clock(), float("nan"))
+            next_tick += self.period_s
+            self._k += 1
+            wait = next_tick - self.clock()
+            if wait > 0:
+                self.sleep(wait)

@@ -1,0 +1,116 @@
+"""The per-frame retargeting step shared by convert and stream (one code path).
+
+human frame → network (online step, causal) → optimizer targets → Retargeter.solve (joint and
+velocity limits) → a :class:`StepOutput`. The safety layer and the backend (a servo bus, the
+simulator or a trajectory file) come after it, in the caller.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter, load_model
+from robot_retarget.optimize import Retargeter, SolveResult, targets_from_rotations
+from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.skeleton.skeleton import Skeleton
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class StepOutput:
+    """One frame's result. ``q`` (J,) rad is inside every limit (the optimizer checked it);
+    ``root_pos`` (3,) m and ``root_quat`` (4,) are the retargeted root (canonical axes, Y up);
+    ``times_s`` are the seconds spent in (network, targets, solve)."""
+
+    q: FloatArray
+    root_pos: FloatArray
+    root_quat: FloatArray
+    solve: SolveResult
+    times_s: tuple[float, float, float]
+
+
+@dataclass
+class StepStats:
+    frames: int = 0
+    fallbacks: int = 0
+    max_iter: int = 0
+
+
+class RetargetStep:
+    """Network + optimizer for one robot and one performer skeleton.
+
+    Build the Retargeter once per robot (its JIT solver is compiled and cached) and pass it in;
+    :meth:`set_source` switches performers (e.g. the next clip of a folder) without rebuilding.
+    """
+
+    def __init__(
+        self,
+        config: RobotConfig,
+        model: LoadedModel | str,
+        source_skeleton: Skeleton,
+        *,
+        retargeter: Retargeter | None = None,
+    ) -> None:
+        self.config = config
+        self.model = load_model(model) if isinstance(model, str) else model
+        self.robot_skeleton = robot_canonical_skeleton(config)
+        self.retargeter = retargeter if retargeter is not None else Retargeter(config)
+        self.stats = StepStats()
+        self.set_source(source_skeleton)
+
+    def set_source(self, source_skeleton: Skeleton) -> None:
+        """A new performer: fresh network state for their rest offsets."""
+        self.online = OnlineRetargeter(
+            self.model, source_skeleton.offsets, self.robot_skeleton.offsets
+        )
+
+    def warm_up(self, frames: int = 3) -> None:
+        """A few network steps on the rest pose (the first torch call is slow), then a reset
+        of the network's state; call before real time."""
+        rest = np.zeros((len(self.robot_skeleton.names), 4))
+        rest[:, 0] = 1.0
+        for _ in range(frames):
+            self.online.step(rest, np.zeros(3))
+        self.online.reset()
+
+    def reset(self, q_start: npt.ArrayLike | None = None) -> None:
+        """Start a new sequence at ``q_start`` (default: the robot's init pose)."""
+        self.online.reset()
+        self.retargeter.reset(q_start)
+        self.stats = StepStats()
+
+    def __call__(
+        self,
+        local_quats: npt.ArrayLike,
+        root_pos: npt.ArrayLike,
+        dt_s: float,
+        *,
+        q_prev: npt.ArrayLike | None = None,
+    ) -> StepOutput:
+        """Retarget one human frame; ``q_prev`` overrides the last command (velocity box)."""
+        t0 = time.perf_counter()
+        quats, root = self.online.step(local_quats, root_pos)
+        t1 = time.perf_counter()
+        problem = self.retargeter.problem
+        targets = targets_from_rotations(
+            problem, self.robot_skeleton, quats[None], root_pos=root[None]
+        ).frame(0)
+        t2 = time.perf_counter()
+        result = self.retargeter.solve(targets, dt_s, q_prev=q_prev)
+        t3 = time.perf_counter()
+        self.stats.frames += 1
+        self.stats.fallbacks += int(result.used_fallback)
+        self.stats.max_iter += int(result.status.value == "max_iter")
+        return StepOutput(
+            q=np.asarray(result.q, dtype=np.float64),
+            root_pos=np.asarray(root, dtype=np.float64),
+            root_quat=np.asarray(quats[0], dtype=np.float64),
+            solve=result,
+            times_s=(t1 - t0, t2 - t1, t3 - t2),
+        )

@@ -1,0 +1,79 @@
+"""Motion sources: replayed clips and live streams, all delivering canonical-skeleton frames.
+
+``open_source(spec)`` understands:
+
+- ``replay:CLIP.bvh`` — a clip played in real time (``loop`` / ``speed`` options);
+- ``udp://HOST:PORT`` — canonical joint positions or rotations, JSON or binary
+  (wire format: :mod:`robot_retarget.sources.wire`);
+- ``tcp-bvh://HOST:PORT`` — a BVH stream from mocap software (:mod:`.tcp_bvh`).
+
+Network sources use 127.0.0.1 unless ``allow_remote`` is given.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from urllib.parse import urlsplit
+
+from robot_retarget.errors import SourceError
+from robot_retarget.sources.base import MotionSource, SourceFrame, SourceStats
+from robot_retarget.sources.replay import ReplaySource
+from robot_retarget.sources.udp import DEFAULT_PORT, UdpSource
+
+__all__ = [
+    "MotionSource",
+    "ReplaySource",
+    "SourceFrame",
+    "SourceStats",
+    "UdpSource",
+    "open_source",
+]
+
+SOURCE_FORMS = "replay:CLIP.bvh, udp://127.0.0.1:9750 or tcp-bvh://127.0.0.1:PORT"
+
+
+def _host_port(spec: str, default_port: int | None) -> tuple[str, int]:
+    parts = urlsplit(spec)
+    try:
+        port = parts.port
+    except ValueError:
+        raise SourceError(f"bad port in source {spec!r}; use e.g. {SOURCE_FORMS}") from None
+    host = parts.hostname or "127.0.0.1"
+    if port is None:
+        if default_port is None:
+            raise SourceError(f"source {spec!r} needs a port, e.g. tcp-bvh://127.0.0.1:7001")
+        port = default_port
+    return host, port
+
+
+def open_source(
+    spec: str,
+    *,
+    loop: bool = False,
+    speed: float = 1.0,
+    token: str = "",
+    allow_remote: bool = False,
+    max_frames: int | None = None,
+) -> MotionSource:
+    """A (not yet started) source for ``spec``; raises SourceError for anything unusable."""
+    if spec.startswith("replay:"):
+        from robot_retarget.errors import MotionFormatError
+        from robot_retarget.motion.human_motion import load_motion
+
+        path = Path(spec[len("replay:") :])
+        if not path.is_file():
+            raise SourceError(f"replay clip {path} does not exist; give replay:PATH/TO/CLIP.bvh")
+        try:
+            motion = load_motion(path, max_frames=max_frames)
+        except MotionFormatError as exc:
+            raise SourceError(f"cannot replay {path}: {exc}") from exc
+        return ReplaySource(motion, loop=loop, speed=speed)
+    if spec.startswith("udp://"):
+        host, port = _host_port(spec, DEFAULT_PORT)
+        return UdpSource(host, port, token=token, allow_remote=allow_remote)
+    if spec.startswith("tcp-bvh://"):
+        from robot_retarget.sources.tcp_bvh import TcpBvhSource
+
+        host, port = _host_port(spec, None)
+        return TcpBvhSource(host, port, allow_remote=allow_remote)
+    raise SourceError(f"unknown source {spec!r}; use {SOURCE_FORMS}")

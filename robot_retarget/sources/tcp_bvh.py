@@ -1,0 +1,267 @@
+"""TcpBvhSource: a BVH motion stream over TCP, as mocap software broadcasts it.
+
+The sender (the server: motion-capture software) first sends a complete BVH header —
+``HIERARCHY … MOTION``, ``Frames: N`` (any N, ignored) and ``Frame Time: dt`` — then one line
+of channel values per frame, forever. We connect as a client. The header is read in
+:meth:`start` (so the performer's skeleton is known before streaming begins) and mapped onto
+the canonical skeleton with the same loader as files (every naming family it knows); each
+frame line is then converted with the mapping fixed by the header. Frame k gets timestamp
+``k · dt`` and sequence number k. Lines with the wrong number of values, non-numbers or NaN are
+dropped and counted; an overlong line is dropped as oversized.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import socket
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from robot_retarget.errors import MotionFormatError, SourceError
+from robot_retarget.motion.bvh import BvhClip, parse_bvh
+from robot_retarget.motion.canonicalize import canonicalize
+from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.skeleton.skeleton import Skeleton
+from robot_retarget.sources.base import (
+    DEFAULT_QUEUE_FRAMES,
+    FrameQueue,
+    MotionSource,
+    SourceFrame,
+    SourceStats,
+)
+from robot_retarget.sources.udp import check_bind_address
+
+MAX_HEADER_BYTES = 1 << 20
+MAX_LINE_BYTES = 1 << 16
+
+
+def split_header(text: str) -> tuple[str, float, int] | None:
+    """(header text up to MOTION, frame time s, characters consumed) once the ``Frame Time``
+    line is complete; None while more text is needed."""
+    lines = text.split("\n")
+    consumed = 0
+    motion = False
+    for i, raw in enumerate(lines[:-1]):  # the last piece may be an incomplete line
+        consumed += len(raw) + 1
+        line = raw.strip()
+        if line.upper() == "MOTION":
+            motion = True
+            header_end = consumed
+        elif motion and line.lower().startswith("frame time:"):
+            try:
+                dt = float(line.split(":", 1)[1])
+            except ValueError:
+                raise MotionFormatError(f"bad Frame Time line {line!r}", line=i + 1) from None
+            if not (math.isfinite(dt) and dt > 0.0):
+                raise MotionFormatError(f"Frame Time must be positive, got {dt}", line=i + 1)
+            return text[:header_end], dt, consumed
+    return None
+
+
+class TcpBvhSource(MotionSource):
+    def __init__(
+        self,
+        host: str,
+        port: int,
+        *,
+        allow_remote: bool = False,
+        connect_timeout_s: float = 5.0,
+        max_queue: int = DEFAULT_QUEUE_FRAMES,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        check_bind_address(host, allow_remote, "tcp-bvh server")
+        self.host = host
+        self.port = port
+        self.connect_timeout_s = connect_timeout_s
+        self.stats = SourceStats()
+        self._clock = clock
+        self._queue = FrameQueue(self.stats, max_queue)
+        self._sock: socket.socket | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._template: BvhClip | None = None
+        self._first: HumanMotion | None = None
+        self._dt = 0.0
+        self._count = 0
+        self._pending = b""
+        self._closed = False
+        self.error: str | None = None  # why the stream ended early, if it did
+
+    @property
+    def skeleton(self) -> Skeleton:
+        if self._first is None:
+            raise SourceError("tcp-bvh source: start() first (the skeleton comes in the header)")
+        return self._first.skeleton
+
+    @property
+    def nominal_fps(self) -> float:
+        return 1.0 / self._dt if self._dt > 0 else 60.0
+
+    @property
+    def finished(self) -> bool:
+        return self._closed
+
+    def describe(self) -> str:
+        return f"tcp-bvh://{self.host}:{self.port}"
+
+    def start(self) -> None:
+        try:
+            sock = socket.create_connection((self.host, self.port), timeout=self.connect_timeout_s)
+        except OSError as exc:
+            raise SourceError(
+                f"cannot connect to the BVH stream at {self.host}:{self.port} ({exc}); is the "
+                "mocap software broadcasting BVH on that port?"
+            ) from exc
+        try:
+            rest = self._read_header(sock)
+        except BaseException:
+            sock.close()
+            raise
+        sock.settimeout(0.05)
+        self._sock = sock
+        self._pending = rest
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="tcp-bvh-source", daemon=True)
+        self._thread.start()
+
+    def _read_header(self, sock: socket.socket) -> bytes:
+        data = b""
+        deadline = time.monotonic() + self.connect_timeout_s
+        while True:
+            text = data.decode("utf-8", errors="replace")
+            try:
+                found = split_header(text)
+            except MotionFormatError as exc:
+                raise SourceError(f"tcp-bvh header from {self.host}:{self.port}: {exc}") from exc
+            if found is not None:
+                break
+            if len(data) > MAX_HEADER_BYTES:
+                raise SourceError(f"tcp-bvh header longer than {MAX_HEADER_BYTES} bytes; not BVH?")
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise SourceError(
+                    f"no complete BVH header from {self.host}:{self.port} within "
+                    f"{self.connect_timeout_s:g} s"
+                )
+            sock.settimeout(remaining)
+            try:
+                chunk = sock.recv(65536)
+            except OSError as exc:
+                raise SourceError(f"tcp-bvh stream failed while reading the header: {exc}") from exc
+            if not chunk:
+                raise SourceError("tcp-bvh stream closed before the header was complete")
+            data += chunk
+        header, dt, consumed = found
+        try:
+            # One zero row: the parser wants a frame; the channel count comes from CHANNELS.
+            width = sum(int(n) for n in re.findall(r"CHANNELS\s+(\d+)", header, re.IGNORECASE))
+            probe = parse_bvh(header + "Frames: 1\nFrame Time: 1\n" + " ".join(["0"] * width))
+        except MotionFormatError as exc:
+            raise SourceError(f"tcp-bvh header is not valid BVH: {exc}") from exc
+        n_channels = sum(len(c) for c in probe.channels)
+        self._template = dataclasses.replace(
+            probe, frame_time_s=dt, motion=np.zeros((1, n_channels)), path=self.describe()
+        )
+        try:
+            self._first = canonicalize(self._template, drop_tpose=False)
+        except MotionFormatError as exc:
+            raise SourceError(f"tcp-bvh skeleton cannot be mapped: {exc}") from exc
+        self._dt = dt
+        return text[consumed:].encode("utf-8")  # frame lines that came with the header
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def poll(self, now_s: float) -> list[SourceFrame]:
+        return self._queue.drain()
+
+    def _run(self) -> None:
+        sock = self._sock
+        pending, self._pending = self._pending, b""
+        if pending:
+            self.feed(pending, self._clock())
+        while sock is not None and not self._stop.is_set():
+            try:
+                chunk = sock.recv(65536)
+            except TimeoutError:
+                continue
+            except OSError as exc:
+                self.error = f"connection lost: {exc}"
+                break
+            if not chunk:
+                self.error = "the sender closed the stream"
+                break
+            self.feed(chunk, self._clock())
+        self._closed = True
+
+    def feed(self, data: bytes, recv_s: float) -> list[SourceFrame]:
+        """Process received bytes (complete lines become frames); returns the new frames."""
+        buf = self._pending + data
+        lines = buf.split(b"\n")
+        self._pending = lines.pop()
+        if len(self._pending) > MAX_LINE_BYTES:
+            self.stats.received += 1
+            self.stats.drop("oversized")
+            self._pending = b""
+        rows: list[np.ndarray] = []
+        template = self._template
+        if template is None:
+            return []
+        width = template.motion.shape[1]
+        for raw in lines:
+            if not raw.strip():
+                continue
+            self.stats.received += 1
+            if len(raw) > MAX_LINE_BYTES:
+                self.stats.drop("oversized")
+                continue
+            try:
+                values = np.array(raw.split(), dtype=np.float64)
+            except ValueError:
+                self.stats.drop("malformed")
+                continue
+            if values.shape != (width,):
+                self.stats.drop("malformed")
+                continue
+            if not np.all(np.isfinite(values)):
+                self.stats.drop("nan")
+                continue
+            rows.append(values)
+        if not rows:
+            return []
+        first = self._first
+        if first is None:
+            return []
+        try:
+            clip = dataclasses.replace(template, motion=np.stack(rows))
+            motion = canonicalize(
+                clip,
+                unit=first.unit,
+                drop_tpose=False,
+                up_axis=first.up_axis,
+                family=first.name_family,
+            )
+        except (MotionFormatError, ValueError):
+            for _ in rows:  # e.g. angles so large the rotations are not finite
+                self.stats.drop("malformed")
+            return []
+        frames = []
+        for i in range(motion.num_frames):
+            k = self._count
+            frame = SourceFrame(motion.local_quats[i], motion.root_pos[i], k * self._dt, k, recv_s)
+            self._count += 1
+            self.stats.accepted += 1
+            self._queue.put(frame)
+            frames.append(frame)
+        return frames

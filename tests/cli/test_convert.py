@@ -1,0 +1,149 @@
+"""``convert``: shared clips to NPZ / CSV / JSON within limits, folders, failures, --force."""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+from types import FrameType
+
+import numpy as np
+import pytest
+
+from robot_retarget.cli import convert_cmd
+from robot_retarget.errors import MotionFormatError
+from robot_retarget.motion.trajectory import RobotTrajectory
+from robot_retarget.pipeline.convert import check_limits
+from robot_retarget.robot.loader import load_robot_config
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "motion"
+TIME_LIMIT_S = 120
+
+
+@pytest.fixture(autouse=True)
+def _time_limit() -> Iterator[None]:
+    def _expire(signum: int, frame: FrameType | None) -> None:
+        raise TimeoutError(f"test exceeded {TIME_LIMIT_S} s")
+
+    old = signal.signal(signal.SIGALRM, _expire)
+    signal.alarm(TIME_LIMIT_S)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def _run(*argv: str) -> int:
+    parser = argparse.ArgumentParser()
+    convert_cmd.configure(parser)
+    return convert_cmd.run(parser.parse_args(list(argv)))
+
+
+@pytest.mark.data
+@pytest.mark.parametrize("suffix", [".npz", ".csv", ".json"])
+def test_shared_clip_to_each_format(shared_data_dir: Path, tmp_path: Path, suffix: str,
+                                    capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    clip = shared_data_dir / "mocap" / "02" / "02_05.bvh"
+    out = tmp_path / f"boxing{suffix}"
+    assert _run(str(clip), "--robot", "op3", "--out", str(out), "--max-frames", "150") == 0
+    traj = RobotTrajectory.read(out)
+    config = load_robot_config("op3")
+    assert traj.joint_names == config.joint_names
+    assert traj.fps == config.control_rate_hz
+    assert traj.root_pos is not None
+    assert traj.root_quat is not None
+    assert traj.frame_ms is not None
+    assert traj.num_frames == 156  # 150 frames at 120 fps → 1.24 s at 125 Hz
+    atol = 1e-12 if suffix == ".npz" else 1e-9  # text formats round the last digit
+    assert np.all(traj.q >= config.lower - atol)
+    assert np.all(traj.q <= config.upper + atol)
+    assert check_limits(config, traj.q, 1 / traj.fps).velocity_excess_rad < 1e-9
+    summary = capsys.readouterr().out
+    assert "limits respected" in summary
+    assert "safety clipped 0 commands" in summary
+    assert "0 solver fallbacks" in summary
+
+
+@pytest.mark.data
+def test_daz_naming_family(shared_data_dir: Path, tmp_path: Path) -> None:
+    clips = sorted((shared_data_dir / "mocap" / "12").glob("*.bvh"))
+    if not clips:
+        pytest.skip("no DAZ-converted clips in the shared data (subject 12)")
+    out = tmp_path / "daz.npz"
+    assert _run(str(clips[0]), "--out", str(out), "--max-frames", "40", "--fps", "30") == 0
+    assert RobotTrajectory.read(out).fps == 30.0
+
+
+@pytest.mark.parametrize("name", ["tiny_walk", "asf_names", "mixamo", "z_up", "crlf_tabs"])
+def test_every_naming_family_of_the_fixtures(name: str, tmp_path: Path) -> None:
+    out = tmp_path / f"{name}.json"
+    assert _run(str(FIXTURES / f"{name}.bvh"), "--out", str(out), "--fps", "30") == 0
+    traj = RobotTrajectory.read(out)
+    assert traj.num_frames > 5
+    assert check_limits(load_robot_config("op3"), traj.q, 1 / 30).ok
+
+
+def test_folder_keeps_structure_and_survives_a_bad_clip(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = tmp_path / "in"
+    (src / "walks").mkdir(parents=True)
+    shutil.copy(FIXTURES / "tiny_walk.bvh", src / "walks" / "a.bvh")
+    shutil.copy(FIXTURES / "mixamo.bvh", src / "b.bvh")
+    (src / "broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    out = tmp_path / "out"
+    rc = _run(str(src), "--out", str(out), "--format", "csv", "--fps", "30",
+              "--bvh-out", str(tmp_path / "bvh"))  # fmt: skip
+    assert rc == 1
+    assert (out / "walks" / "a.csv").is_file()
+    assert (out / "b.csv").is_file()
+    assert not (out / "broken.csv").exists()
+    assert (tmp_path / "bvh" / "walks" / "a.bvh").is_file()
+    text = capsys.readouterr()
+    assert "FAILED" in text.out
+    assert "broken.bvh" in text.err
+    assert "2 of 3 clips" in text.out
+
+
+def test_existing_output_needs_force(tmp_path: Path) -> None:
+    out = tmp_path / "t.npz"
+    clip = str(FIXTURES / "tiny_walk.bvh")
+    assert _run(clip, "--out", str(out), "--fps", "30") == 0
+    stamp = out.stat().st_mtime_ns
+    assert _run(clip, "--out", str(out), "--fps", "30") == 1
+    assert out.stat().st_mtime_ns == stamp
+    assert _run(clip, "--out", str(out), "--fps", "30", "--force") == 0
+
+
+def test_preview_and_robot_bvh(tmp_path: Path) -> None:
+    out = tmp_path / "t.npz"
+    gif = tmp_path / "t.gif"
+    bvh = tmp_path / "robot.bvh"
+    clip = str(FIXTURES / "tiny_walk.bvh")
+    assert _run(clip, "--out", str(out), "--preview", str(gif), "--bvh-out", str(bvh)) == 0
+    assert gif.stat().st_size > 1000
+    assert bvh.read_text().startswith("HIERARCHY\nROOT body_link")
+
+
+def test_bad_arguments(tmp_path: Path) -> None:
+    clip = str(FIXTURES / "tiny_walk.bvh")
+    with pytest.raises(MotionFormatError, match="must end in"):
+        _run(clip, "--out", str(tmp_path / "t.txt"))
+    with pytest.raises(MotionFormatError, match="no such file"):
+        _run(str(tmp_path / "missing.bvh"), "--out", str(tmp_path / "t.npz"))
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(MotionFormatError, match=r"no \.bvh files"):
+        _run(str(tmp_path / "empty"), "--out", str(tmp_path / "o"))
+
+
+def test_progress_bar_writes_only_the_final_line_to_a_file() -> None:
+    import io
+
+    buf = io.StringIO()
+    bar = convert_cmd.ProgressBar("clip", width=10, stream=buf)
+    for k in range(1, 101):
+        bar(k, 100)
+    assert buf.getvalue() == "clip [##########] 100% (100/100)\n"

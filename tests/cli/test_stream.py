@@ -1,0 +1,206 @@
+"""``stream``: replay into the simulator, refused sources, and Ctrl-C with the real SDK on a
+simulated Dynamixel bus (the bus must see the torque go off)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from types import FrameType
+
+import numpy as np
+import pytest
+
+from robot_retarget.cli import stream_cmd
+from robot_retarget.errors import MotionFormatError, SourceError
+from robot_retarget.motion.trajectory import RobotTrajectory
+from robot_retarget.pipeline.convert import check_limits
+from robot_retarget.pipeline.sim_bus import SimulatedRobotBus
+from robot_retarget.robot.loader import load_robot_config
+
+REPO = Path(__file__).resolve().parents[2]
+FIXTURES = REPO / "tests" / "fixtures" / "motion"
+TIME_LIMIT_S = 90
+
+
+@pytest.fixture(autouse=True)
+def _time_limit() -> Iterator[None]:
+    def _expire(signum: int, frame: FrameType | None) -> None:
+        raise TimeoutError(f"test exceeded {TIME_LIMIT_S} s")
+
+    old = signal.signal(signal.SIGALRM, _expire)
+    signal.alarm(TIME_LIMIT_S)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def _args(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    stream_cmd.configure(parser)
+    return parser.parse_args(list(argv))
+
+
+def test_replay_into_the_simulator(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    record = tmp_path / "streamed.csv"
+    args = _args("--robot", "op3", "--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}",
+                 "--backend", "sim", "--duration", "1.0", "--stats-every", "0.5",
+                 "--record", str(record))  # fmt: skip
+    assert stream_cmd.run(args) == 0
+    traj = RobotTrajectory.read(record)
+    config = load_robot_config("op3")
+    assert traj.num_frames > 100
+    assert check_limits(config, traj.q, 1 / traj.fps, q_start=config.init_pose).ok
+    with pytest.raises(MotionFormatError, match="--force"):
+        stream_cmd.run(args)
+    out = capsys.readouterr()
+    assert "latency median" in out.out
+    assert "safety: 0 of" in out.out
+    assert "solver fallbacks: 0" in out.out
+    assert "[ramp-in]" in out.err
+    assert "streaming replay" in out.err
+
+
+@pytest.mark.parametrize(
+    ("source", "match"),
+    [("udp://0.0.0.0:9750", "allow-remote"), ("tcp-bvh://192.168.3.3:7001", "allow-remote"),
+     ("bogus:thing", "unknown source")],
+)  # fmt: skip
+def test_unsafe_or_unknown_sources_are_refused(source: str, match: str) -> None:
+    with pytest.raises(SourceError, match=match):
+        stream_cmd.run(_args("--source", source))
+
+
+def test_bad_numbers_are_refused() -> None:
+    from robot_retarget.errors import RetargetError
+
+    with pytest.raises(RetargetError, match="--rate"):
+        stream_cmd.run(_args("--source", "udp://127.0.0.1:0", "--rate", "-5"))
+
+
+_CHILD = (
+    "import argparse, sys\n"
+    "from robot_retarget.cli import stream_cmd as c\n"
+    "p = argparse.ArgumentParser(); c.configure(p)\n"
+    "sys.exit(c.run(p.parse_args(sys.argv[1:])))\n"
+)
+
+
+def test_ctrl_c_stops_smoothly_and_the_bus_sees_torque_off() -> None:
+    config = load_robot_config("op3")
+    with SimulatedRobotBus(config, config.init_pose) as sim:
+        port = sim.ports["main"]
+        cmd = [sys.executable, "-c", _CHILD, "--robot", "op3", "--backend", "dynamixel",
+               "--port", port, "--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}", "--loop",
+               "--stats-every", "1"]  # fmt: skip
+        env = dict(os.environ, PYTHONPATH=str(REPO))
+        proc = subprocess.Popen(
+            cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        try:
+            deadline = time.monotonic() + 60.0
+            while not all(sim.torque_on()) and time.monotonic() < deadline:
+                if proc.poll() is not None:
+                    break
+                time.sleep(0.05)
+            assert all(sim.torque_on()), "the stream never switched the torque on"
+            time.sleep(1.0)  # stream for a while
+            moved_from_init = float(np.max(np.abs(sim.goal_q() - config.init_pose)))
+            proc.send_signal(signal.SIGINT)
+            out, err = proc.communicate(timeout=30.0)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        sim.settle()
+        torque = sim.torque_on()
+        goal = sim.goal_q()
+    assert proc.returncode == 0, err
+    assert "stopped by Ctrl-C" in out
+    assert "interrupted: stopping smoothly" in err
+    assert moved_from_init > 0.01
+    assert not any(torque)
+    np.testing.assert_allclose(goal, config.safe_pose, atol=0.002)  # ramped there first
+
+
+def test_tcp_bvh_stream_drives_the_simulator(capsys: pytest.CaptureFixture[str]) -> None:
+    """A BVH broadcast (header, then one line per frame at 30 fps) from a local server."""
+    text = (FIXTURES / "tiny_walk.bvh").read_text()
+    head, _, motion = text.partition("MOTION")
+    lines = motion.strip().splitlines()
+    header = (head + "MOTION\n" + lines[0] + "\n" + lines[1] + "\n").encode()
+    rows = [(ln + "\n").encode() for ln in lines[2:]]
+    srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(1)
+    srv.settimeout(20.0)
+
+    def serve() -> None:
+        try:
+            conn, _ = srv.accept()
+        except OSError:
+            return
+        with conn:
+            conn.sendall(header)
+            for row in rows * 2:
+                time.sleep(1 / 30)
+                try:
+                    conn.sendall(row)
+                except OSError:
+                    return
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    try:
+        port = srv.getsockname()[1]
+        args = _args("--source", f"tcp-bvh://127.0.0.1:{port}", "--duration", "1.2")
+        assert stream_cmd.run(args) == 0
+    finally:
+        srv.close()
+        server.join(timeout=5.0)
+    out = capsys.readouterr().out
+    assert "0 dropped" in out
+    assert "tracking" in out
+
+
+def test_second_ctrl_c_switches_off_at_once() -> None:
+    config = load_robot_config("op3")
+    with SimulatedRobotBus(config, config.init_pose) as sim:
+        clip = FIXTURES / "tiny_walk.bvh"
+        cmd = [sys.executable, "-c", _CHILD, "--backend", "dynamixel", "--port",
+               sim.ports["main"], "--source", f"replay:{clip}", "--loop"]  # fmt: skip
+        env = dict(os.environ, PYTHONPATH=str(REPO))
+        proc = subprocess.Popen(
+            cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        try:
+            deadline = time.monotonic() + 60.0
+            while not all(sim.torque_on()) and time.monotonic() < deadline:
+                if proc.poll() is not None:
+                    break
+                time.sleep(0.05)
+            assert all(sim.torque_on()), "the stream never switched the torque on"
+            time.sleep(0.5)
+            proc.send_signal(signal.SIGINT)
+            time.sleep(0.05)  # now in the smooth stop (≈ 1 s to the safe pose)
+            proc.send_signal(signal.SIGINT)
+            out, err = proc.communicate(timeout=30.0)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        sim.settle()
+        torque = sim.torque_on()
+    assert proc.returncode == 0, err
+    assert "stopped by Ctrl-C" in out
+    assert "interrupted: stopping smoothly" in err
+    assert not any(torque)

@@ -1,0 +1,32 @@
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from robot_retarget.errors import HardwareError
+from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
+from robot_retarget.hardware.sim_backend import SimBackend
+from robot_retarget.pipeline.backends import open_backend, parse_ports
+from robot_retarget.robot.config import BusConfig, RobotConfig
+
+
+def test_ports_for_one_and_two_buses(op3: RobotConfig) -> None:
+    assert parse_ports(op3, ["/dev/ttyX"]) == {"main": "/dev/ttyX"}
+    assert parse_ports(op3, ["main=/dev/ttyY"]) == {"main": "/dev/ttyY"}
+    with pytest.raises(HardwareError, match="no bus"):
+        parse_ports(op3, ["upper=/dev/ttyY"])
+    two = dataclasses.replace(
+        op3, buses=(op3.buses[0], BusConfig("aux", 2.0, 1_000_000, "/dev/ttyUSB1"))
+    )
+    with pytest.raises(HardwareError, match="BUS=PATH"):
+        parse_ports(two, ["/dev/ttyX"])
+
+
+def test_open_backend_kinds(op3: RobotConfig) -> None:
+    assert isinstance(open_backend(op3, "sim"), SimBackend)
+    dxl = open_backend(op3, "dynamixel", ["/dev/does-not-exist"])
+    assert isinstance(dxl, DynamixelBackend)
+    assert not dxl.handle_signals  # the control loop stops smoothly on Ctrl-C itself
+    with pytest.raises(HardwareError, match="unknown backend"):
+        open_backend(op3, "gazebo")

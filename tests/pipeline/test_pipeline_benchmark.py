@@ -1,0 +1,28 @@
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from robot_retarget.pipeline import benchmark
+
+
+@pytest.mark.parametrize("positions", [False, True])
+def test_records_per_stage(positions: bool) -> None:
+    parser = argparse.ArgumentParser()
+    benchmark.configure(parser)
+    args = parser.parse_args(["--frames", "30", "--warmup", "5"] + (["--positions"] * positions))
+    records = benchmark.run(args)
+    assert [r["stage"] for r in records] == list(benchmark.STAGES)
+    for r in records:
+        assert r["runs"] == 30
+        assert 0 <= r["median_ms"] <= r["p99_ms"]
+    total = records[-1]
+    assert total["median_ms"] >= max(r["median_ms"] for r in records[:-1]) * 0.99
+    assert benchmark.HELP
+
+
+def test_bad_frame_count() -> None:
+    with pytest.raises(ValueError, match="frames"):
+        benchmark.run(argparse.Namespace(frames=0, warmup=0, robot="op3", model=None,
+                                         positions=False))  # fmt: skip

@@ -1,0 +1,65 @@
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.optimize import SolveStatus
+from robot_retarget.pipeline.step import RetargetStep
+from robot_retarget.robot.config import RobotConfig
+
+
+def test_step_output_is_inside_the_limits(step: RetargetStep, demo: HumanMotion) -> None:
+    dt = 1 / 30
+    prev = step.config.init_pose
+    for t in range(20):
+        out = step(demo.local_quats[t], demo.root_pos[t], dt)
+        assert out.q.shape == (step.config.num_joints,)
+        assert np.all(out.q >= step.config.lower)
+        assert np.all(out.q <= step.config.upper)
+        assert np.all(np.abs(out.q - prev) <= step.config.max_velocity * dt + 1e-12)
+        np.testing.assert_allclose(np.linalg.norm(out.root_quat), 1.0, atol=1e-9)
+        assert out.solve.status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER)
+        assert all(t_s >= 0 for t_s in out.times_s)
+        prev = out.q
+    assert step.stats.frames == 20
+
+
+@settings(
+    max_examples=15,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(
+    arrays(np.float64, (5, 22, 3), elements=st.floats(-3.0, 3.0)),
+    st.floats(0.002, 0.05),
+)
+def test_no_command_ever_leaves_the_limits(
+    step: RetargetStep, op3: RobotConfig, rotvecs: np.ndarray, dt: float
+) -> None:
+    """Arbitrary (even wild) human poses: every command stays in the position/velocity box."""
+    step.reset()
+    prev = op3.init_pose
+    for frame in quat.from_rotation_vector(rotvecs):
+        out = step(frame, np.zeros(3), dt)
+        assert np.all(out.q >= op3.lower)
+        assert np.all(out.q <= op3.upper)
+        assert np.all(np.abs(out.q - prev) <= op3.max_velocity * dt * (1 + 1e-9) + 1e-12)
+        prev = out.q
+
+
+def test_q_prev_override_moves_the_velocity_box(step: RetargetStep, demo: HumanMotion) -> None:
+    start = step.config.safe_pose
+    out = step(demo.local_quats[0], demo.root_pos[0], 0.01, q_prev=start)
+    assert np.all(np.abs(out.q - start) <= step.config.max_velocity * 0.01 + 1e-12)
+
+
+def test_set_source_restarts_the_network(step: RetargetStep, demo: HumanMotion) -> None:
+    a = step(demo.local_quats[5], demo.root_pos[5], 0.01)
+    step.set_source(demo.skeleton.scaled(0.5))
+    step.reset()
+    b = step(demo.local_quats[5], demo.root_pos[5], 0.01)
+    assert np.all(np.isfinite(b.q))
+    assert a.q.shape == b.q.shape
