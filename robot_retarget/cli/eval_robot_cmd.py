@@ -1,0 +1,139 @@
+"""``eval-robot --robot op3 --data DIR [--model NAME|PATH] [--json] [--plots DIR]``.
+
+Converts every clip of the validation subjects with the full pipeline and scores it on the robot
+against a position-IK baseline and the kinematic limit (robot_retarget.evaluation.robot).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+NAME = "eval-robot"
+HELP = "Score the whole pipeline on the robot against a position-IK baseline and the limit."
+
+_DEFAULT_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robot", default="op3", help="robot config name or path (default op3)")
+    parser.add_argument(
+        "--data", default=str(_DEFAULT_DATA), help=f"folder of BVH clips (default {_DEFAULT_DATA})"
+    )
+    parser.add_argument(
+        "--model",
+        default=None,
+        metavar="NAME|PATH",
+        help="model (default: the pipeline's); 'oracle': an ideal network (the human's own "
+        "segment directions as the optimizer's targets)",
+    )
+    parser.add_argument(
+        "--val-subjects",
+        default=None,
+        help="comma-separated subjects (default: the training split's validation subjects)",
+    )
+    parser.add_argument("--json", action="store_true", help="print JSON instead of markdown")
+    parser.add_argument("--plots", default=None, metavar="DIR", help="write PNG plots here")
+    parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
+    parser.add_argument(
+        "--stride", type=int, default=None, help="score every Nth control frame (default: 10 fps)"
+    )
+    parser.add_argument(
+        "--eval-fps", type=float, default=10.0, help="evaluation rate (default 10 fps)"
+    )
+    parser.add_argument(
+        "--settle-s",
+        type=float,
+        default=0.0,
+        help="leave each clip's first seconds out of the direction and end-effector scores "
+        "(the move from the init pose); default 0",
+    )
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override an optimizer option of the robot's 'retarget:' section (tuning runs)",
+    )
+    parser.add_argument(
+        "--cache-dir",
+        default=None,
+        help="kinematic-limit cache (default: the solver cache folder; 'none' to disable)",
+    )
+
+
+def _overrides(items: list[str]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise SystemExit(f"eval-robot: --set needs KEY=NUMBER, got {item!r}")
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from robot_retarget.errors import RetargetError
+    from robot_retarget.evaluation.robot.plots import segment_bars, stick_strip
+    from robot_retarget.evaluation.robot.report import markdown_report, report_dict
+    from robot_retarget.evaluation.robot.runner import (
+        ORACLE_MODEL,
+        EvalRobotSettings,
+        evaluate_robot,
+        oracle_runner,
+        pipeline_runner,
+        validation_clips,
+        with_retarget_overrides,
+    )
+    from robot_retarget.evaluation.robot.segments import RobotBodyModel
+    from robot_retarget.nn.dataset import DEFAULT_VALIDATION_SUBJECTS
+    from robot_retarget.optimize.solver import default_cache_dir
+    from robot_retarget.pipeline.defaults import default_model_name
+    from robot_retarget.robot.loader import load_robot_config
+
+    try:
+        config = with_retarget_overrides(load_robot_config(args.robot), _overrides(args.set))
+        subjects = DEFAULT_VALIDATION_SUBJECTS
+        if args.val_subjects:
+            subjects = tuple(s for s in args.val_subjects.split(",") if s)
+        clips = validation_clips(args.data, subjects)
+        model = args.model or default_model_name()
+        cache = (
+            default_cache_dir() / "eval_robot" if args.cache_dir is None else Path(args.cache_dir)
+        )
+        settings = EvalRobotSettings(
+            eval_fps=args.eval_fps,
+            stride=args.stride,
+            max_frames=args.max_frames,
+            settle_s=args.settle_s,
+            cache_dir=None if args.cache_dir == "none" else cache,
+        )
+
+        def progress(name: str) -> None:
+            print(f"  {name}", file=sys.stderr, flush=True)
+
+        report = evaluate_robot(
+            config,
+            clips,
+            oracle_runner(config) if model == ORACLE_MODEL else pipeline_runner(config, model),
+            settings,
+            model_name=str(model),
+            progress=progress,
+        )
+    except RetargetError as exc:
+        print(f"eval-robot: {exc}", file=sys.stderr)
+        return 1
+    if args.plots:
+        out = Path(args.plots)
+        segment_bars(report, out / f"eval_robot_{report.robot}_segments.png")
+        stick_strip(report, RobotBodyModel(config), out / f"eval_robot_{report.robot}_strip.png")
+    if args.json:
+        print(json.dumps(report_dict(report), indent=2))
+    else:
+        print(markdown_report(report))
+    return 0

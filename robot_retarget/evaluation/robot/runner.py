@@ -1,0 +1,403 @@
+"""eval-robot: convert clips with the full pipeline and score them against two references.
+
+Per clip (every ``.bvh`` of the validation subjects):
+
+1. **pipeline** — :func:`run_pipeline` (``robot_retarget.pipeline.convert.convert_motion``:
+   network → optimizer targets → Retargeter.solve → SafetyLayer), frame by frame at the robot's
+   control rate, from the init pose, exactly as ``convert`` / ``stream`` do;
+2. **baseline** — per-frame position IK (:mod:`robot_retarget.optimize.position_ik`) of elbows,
+   hands, knees and ankles to the human's keypoints scaled to the robot's limbs, within the
+   joint limits and velocity box, at the same rate from the same init pose;
+3. **limit** — :mod:`robot_retarget.optimize.kinematic_limit` per evaluation frame, started
+   from the pipeline's and the baseline's poses among others, so it is never worse than either.
+
+Direction and end-effector errors are scored on evaluation frames: every ``stride``-th frame at
+the control rate, ``stride = round(rate / eval_fps)`` (default 10 fps: every 12th frame at
+OP3's 125 Hz) — the kinematic limit is a multi-start optimisation per frame, and motion changes
+little within 0.1 s. ``settle_s`` leaves the first seconds out of those scores (every run
+starts from the robot's init pose, a deep crouch for OP3, and needs ≈ 0.5 s at the servos' speed
+to reach the performer's first pose; the limit has no speed limit). Speed, limit violations
+and jerk use every frame. Per-clip means are
+averaged weighted by clip duration; p95 is over all evaluation frames pooled. Kinematic-limit
+solutions are cached on disk (keyed by their inputs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import logging
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.errors import SourceError
+from robot_retarget.evaluation.robot.metrics import (
+    TrajectoryStats,
+    end_effector_errors,
+    segment_angles,
+    trajectory_stats,
+)
+from robot_retarget.evaluation.robot.references import (
+    baseline_points,
+    baseline_targets,
+    limit_segments,
+    robot_body_axes,
+)
+from robot_retarget.evaluation.robot.segments import (
+    KINDS,
+    SEGMENT_KIND,
+    BodyPoints,
+    RobotBodyModel,
+    human_body_points,
+)
+from robot_retarget.motion.human_motion import HumanMotion, load_motion
+from robot_retarget.optimize.kinematic_limit import KinematicLimit
+from robot_retarget.optimize.position_ik import PositionIK
+from robot_retarget.robot.config import RobotConfig
+
+FloatArray = npt.NDArray[np.float64]
+log = logging.getLogger(__name__)
+
+METHODS = ("pipeline", "baseline", "limit")
+_CACHE_VERSION = "1"
+
+
+@dataclass(frozen=True)
+class EvalRobotSettings:
+    """What eval-robot runs. ``stride`` (evaluation frames) overrides ``eval_fps``;
+    ``max_frames`` keeps the first frames of each clip (at the file's rate)."""
+
+    eval_fps: float = 10.0
+    stride: int | None = None
+    max_frames: int | None = None
+    settle_s: float = 0.0  # direction / end-effector scores skip the first seconds of a clip
+    random_starts: int = 4
+    seed: int = 0
+    cache_dir: Path | None = None  # None: no kinematic-limit cache
+
+
+@dataclass(frozen=True)
+class PipelineRun:
+    """What the full pipeline produced for one clip."""
+
+    q: FloatArray  # (T, J) at ``fps``
+    fps: float
+    fallbacks: int
+    ms_per_frame: float
+
+
+@dataclass(frozen=True)
+class MethodClip:
+    """One method on one clip. ``angles`` (N, 9) rad and ``ee`` (N, 4) on evaluation frames;
+    ``stats`` None for the kinematic limit (per-frame poses, not a trajectory)."""
+
+    angles: FloatArray
+    ee: FloatArray
+    stats: TrajectoryStats | None
+    fallbacks: int
+    ms_per_frame: float
+
+
+@dataclass(frozen=True)
+class ClipScores:
+    """Every method on one clip, plus poses for the stick-figure strip."""
+
+    name: str
+    duration_s: float
+    methods: Mapping[str, MethodClip]
+    human_positions: FloatArray = field(repr=False)  # (N, 22, 3) evaluation frames
+    robot_q: Mapping[str, FloatArray] = field(repr=False)  # method → (N, J)
+
+
+@dataclass(frozen=True)
+class MethodSummary:
+    """Aggregates over clips (angles in degrees, end-effector errors in limb lengths)."""
+
+    segment_mean_deg: Mapping[str, float]  # KINDS + "overall"
+    segment_p95_deg: float  # p95 of the per-frame mean angle
+    ee_hands: float
+    ee_feet: float
+    ee_overall: float
+    limit_violations: int | None
+    speed_violations: int | None
+    max_speed_rad_s: float | None
+    jerk_rad_s3: float | None
+    fallbacks: int | None
+    ms_per_frame: float
+
+
+@dataclass(frozen=True)
+class EvalRobotReport:
+    robot: str
+    model: str
+    clips: tuple[ClipScores, ...]
+    summary: Mapping[str, MethodSummary]
+    rate_hz: float
+    stride: int
+    eval_frames: int
+    wall_s: float
+    settle_s: float = 0.0
+
+
+PipelineFn = Callable[[HumanMotion], PipelineRun]
+
+
+def pipeline_runner(config: RobotConfig, model: str) -> PipelineFn:
+    """The full pipeline (network → optimizer → safety) as one function of a motion."""
+    from robot_retarget.pipeline.convert import convert_motion
+    from robot_retarget.pipeline.step import RetargetStep
+
+    step: RetargetStep | None = None
+
+    def run(motion: HumanMotion) -> PipelineRun:
+        nonlocal step
+        if step is None:
+            step = RetargetStep(config, model, motion.skeleton)
+        result = convert_motion(motion, step)
+        traj = result.trajectory
+        frame_ms = traj.frame_ms
+        ms = (
+            float(np.mean(frame_ms))
+            if frame_ms is not None
+            else result.wall_s * 1e3 / traj.num_frames
+        )
+        return PipelineRun(np.asarray(traj.q), traj.fps, result.fallbacks, ms)
+
+    return run
+
+
+ORACLE_MODEL = "oracle"
+
+
+def oracle_runner(config: RobotConfig) -> PipelineFn:
+    """The pipeline with an ideal network: the optimizer's targets come from the human's own
+    global positions and rotations (``targets_from_globals``), then Retargeter.solve and the
+    SafetyLayer run as in ``convert``. Separates the optimizer's share of the error from the
+    network's."""
+    from robot_retarget.hardware.safety import SafetyLayer
+    from robot_retarget.hardware.types import JointCommand
+    from robot_retarget.optimize import Retargeter, targets_from_globals
+    from robot_retarget.pipeline.recorder import RecordingBackend
+
+    retargeter = Retargeter(config)
+
+    def run(motion: HumanMotion) -> PipelineRun:
+        rate = float(config.control_rate_hz)
+        m = motion if abs(motion.fps - rate) < 1e-9 else motion.resample(rate)
+        dt = 1.0 / rate
+        targets = targets_from_globals(retargeter.problem, m.positions(), m.global_quats())
+        safety = SafetyLayer(config, RecordingBackend(config))
+        safety.connect()
+        retargeter.reset(config.init_pose)
+        q = np.empty((m.num_frames, config.num_joints))
+        fallbacks = 0
+        t0 = time.perf_counter()
+        for t in range(m.num_frames):
+            result = retargeter.solve(targets.frame(t), dt)
+            # Stamps 1 ppb apart more than dt, as convert does: the step bound is exactly v·dt.
+            q[t] = safety.send(JointCommand(result.q, t * dt * (1.0 + 1e-9))).q
+            fallbacks += int(result.used_fallback)
+        ms = (time.perf_counter() - t0) * 1e3 / m.num_frames
+        safety.disconnect()
+        return PipelineRun(q, rate, fallbacks, ms)
+
+    return run
+
+
+class RobotEvaluator:
+    """Scores clips for one robot: pipeline (given), baseline and kinematic limit (built here)."""
+
+    def __init__(
+        self,
+        config: RobotConfig,
+        pipeline: PipelineFn,
+        settings: EvalRobotSettings | None = None,
+    ) -> None:
+        self.config = config
+        self.pipeline = pipeline
+        self.settings = settings or EvalRobotSettings()
+        self.body = RobotBodyModel(config)
+        frames = self.body.frames
+        self.baseline = PositionIK(config, baseline_points(frames))
+        self.limit = KinematicLimit(
+            config,
+            limit_segments(frames),
+            robot_body_axes(config, frames),
+            random_starts=self.settings.random_starts,
+            seed=self.settings.seed,
+        )
+        self.rate_hz = float(config.control_rate_hz)
+        st = self.settings
+        self.stride = st.stride or max(1, round(self.rate_hz / st.eval_fps))
+
+    def score_motion(self, motion: HumanMotion, name: str) -> ClipScores:
+        run = self.pipeline(motion)
+        rate = run.fps
+        human = motion if abs(motion.fps - rate) < 1e-9 else motion.resample(rate)
+        pos = human.positions()
+        n = min(pos.shape[0], run.q.shape[0])
+        pos, q_pipe = pos[:n], run.q[:n]
+        first = min(n - 1, math.ceil(self.settings.settle_s * rate - 1e-9))
+        idx = np.arange(first, n, self.stride)
+        h = human_body_points(pos[idx])
+        dt = 1.0 / rate
+        t0 = time.perf_counter()
+        base = self.baseline.solve_clip(baseline_targets(self.config, pos), dt)
+        base_ms = (time.perf_counter() - t0) * 1e3 / n
+        candidates = np.stack([q_pipe[idx], base.q[idx]], axis=1)
+        limit_q, limit_ms = self._limit(h, candidates)
+        qs = {"pipeline": q_pipe[idx], "baseline": base.q[idx], "limit": limit_q}
+        methods = {
+            "pipeline": self._method(h, q_pipe, idx, rate, run.fallbacks, run.ms_per_frame),
+            "baseline": self._method(h, base.q, idx, rate, base.fallbacks, base_ms),
+            "limit": self._method(h, limit_q, None, rate, 0, limit_ms),
+        }
+        return ClipScores(name, n / rate, methods, pos[idx], qs)
+
+    def _method(
+        self,
+        human: BodyPoints,
+        q: FloatArray,
+        idx: npt.NDArray[np.int64] | None,
+        rate: float,
+        fallbacks: int,
+        ms: float,
+    ) -> MethodClip:
+        sampled = q if idx is None else q[idx]
+        robot = self.body.body_points(sampled)
+        stats = None if idx is None else trajectory_stats(self.config, q, rate)
+        return MethodClip(
+            segment_angles(human, robot), end_effector_errors(human, robot), stats, fallbacks, ms
+        )
+
+    def _limit(self, human: BodyPoints, candidates: FloatArray) -> tuple[FloatArray, float]:
+        """(poses (N, J), ms per evaluation frame), from the disk cache when possible."""
+        st = self.settings
+        path = None
+        if st.cache_dir is not None:
+            h = hashlib.sha256()
+            for part in (
+                _CACHE_VERSION,
+                self.config.name,
+                repr(self.config.joints),
+                repr(self.config.frames),
+                repr((st.random_starts, st.seed)),
+            ):
+                h.update(part.encode())
+            h.update(np.ascontiguousarray(human.directions).tobytes())
+            h.update(np.ascontiguousarray(candidates).tobytes())
+            path = st.cache_dir / f"limit-{h.hexdigest()[:24]}.npz"
+            if path.is_file():
+                with np.load(path) as z:
+                    return np.asarray(z["q"]), float(z["ms"])
+        t0 = time.perf_counter()
+        result = self.limit.solve(human.directions, candidates)
+        ms = (time.perf_counter() - t0) * 1e3 / max(1, candidates.shape[0])
+        if path is not None:
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                np.savez(path, q=result.q, ms=ms)
+            except OSError as exc:  # a read-only cache only costs time next run
+                log.warning("could not cache the kinematic limit at %s: %s", path, exc)
+        return result.q, ms
+
+
+def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
+    """Duration-weighted means over clips, p95 over pooled evaluation frames, sums of counts."""
+    if not clips:
+        raise SourceError("no clips were scored; check --data and the subjects")
+    w = np.array([c.duration_s for c in clips])
+    w = w / w.sum()
+    kind_idx = {k: [i for i, s in enumerate(SEGMENT_KIND) if s == k] for k in KINDS}
+    out = {}
+    for m in METHODS:
+        per = [c.methods[m] for c in clips]
+        seg = {
+            k: float(
+                np.degrees(sum(wi * p.angles[:, ix].mean() for wi, p in zip(w, per, strict=True)))
+            )
+            for k, ix in kind_idx.items()
+        }
+        seg["overall"] = float(
+            np.degrees(sum(wi * p.angles.mean() for wi, p in zip(w, per, strict=True)))
+        )
+        pooled = np.concatenate([p.angles.mean(axis=1) for p in per])
+        ee_h = float(sum(wi * p.ee[:, :2].mean() for wi, p in zip(w, per, strict=True)))
+        ee_f = float(sum(wi * p.ee[:, 2:].mean() for wi, p in zip(w, per, strict=True)))
+        stats = [p.stats for p in per]
+        has = all(s is not None for s in stats)
+        ss = [s for s in stats if s is not None]
+        out[m] = MethodSummary(
+            segment_mean_deg=seg,
+            segment_p95_deg=float(np.degrees(np.percentile(pooled, 95))),
+            ee_hands=ee_h,
+            ee_feet=ee_f,
+            ee_overall=0.5 * (ee_h + ee_f),
+            limit_violations=sum(s.limit_violations for s in ss) if has else None,
+            speed_violations=sum(s.speed_violations for s in ss) if has else None,
+            max_speed_rad_s=max(s.max_speed_rad_s for s in ss) if has else None,
+            jerk_rad_s3=float(sum(wi * s.jerk_rad_s3 for wi, s in zip(w, ss, strict=True)))
+            if has
+            else None,
+            fallbacks=sum(p.fallbacks for p in per) if has else None,
+            ms_per_frame=float(sum(wi * p.ms_per_frame for wi, p in zip(w, per, strict=True))),
+        )
+    return out
+
+
+def validation_clips(data_dir: str | Path, subjects: Sequence[str]) -> list[tuple[str, Path]]:
+    """(subject/clip name, path) of every BVH clip of ``subjects`` under ``data_dir``."""
+    from robot_retarget.nn.dataset import find_clips, subject_of
+
+    root = Path(data_dir)
+    keep = set(subjects)
+    clips = [(p.relative_to(root).as_posix(), p) for p in find_clips(root)]
+    chosen = [(n, p) for n, p in clips if subject_of(p, root) in keep]
+    if not chosen:
+        raise SourceError(
+            f"no clips of subjects {sorted(keep)} under {root}; pass --val-subjects with "
+            "subjects that exist there"
+        )
+    return chosen
+
+
+def evaluate_robot(
+    config: RobotConfig,
+    clips: Sequence[tuple[str, Path]],
+    pipeline: PipelineFn,
+    settings: EvalRobotSettings | None = None,
+    *,
+    model_name: str = "",
+    progress: Callable[[str], None] | None = None,
+) -> EvalRobotReport:
+    """Score every clip; see the module docstring."""
+    t0 = time.perf_counter()
+    ev = RobotEvaluator(config, pipeline, settings)
+    scores = []
+    for name, path in clips:
+        motion = load_motion(path, max_frames=ev.settings.max_frames)
+        scores.append(ev.score_motion(motion, name))
+        if progress is not None:
+            progress(name)
+    return EvalRobotReport(
+        robot=config.name,
+        model=model_name,
+        clips=tuple(scores),
+        summary=summarize(scores),
+        rate_hz=ev.rate_hz,
+        stride=ev.stride,
+        eval_frames=sum(c.methods["pipeline"].angles.shape[0] for c in scores),
+        wall_s=time.perf_counter() - t0,
+        settle_s=ev.settings.settle_s,
+    )
+
+
+def with_retarget_overrides(config: RobotConfig, overrides: Mapping[str, float]) -> RobotConfig:
+    """The config with optimizer options replaced (for tuning runs; validated on use)."""
+    return dataclasses.replace(config, retarget={**config.retarget, **overrides})

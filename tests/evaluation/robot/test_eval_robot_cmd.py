@@ -1,0 +1,48 @@
+"""The eval-robot command: arguments, output, errors (real clips, first frames only)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import pytest
+
+from robot_retarget.cli import eval_robot_cmd
+
+
+def _args(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    eval_robot_cmd.configure(parser)
+    return parser.parse_args(list(argv))
+
+
+def test_json_and_plots(
+    shared_data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = shared_data_dir / "mocap"
+    args = _args("--data", str(data), "--val-subjects", "12", "--max-frames", "60", "--json",
+                 "--plots", str(tmp_path), "--cache-dir", "none", "--model", "oracle",
+                 "--set", "w_orientation=0.05")  # fmt: skip
+    assert eval_robot_cmd.run(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["robot"] == "op3"
+    assert out["model"] == "oracle"
+    assert len(out["clips"]) == 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "eval_robot_op3_segments.png",
+        "eval_robot_op3_strip.png",
+    ]
+
+
+def test_unknown_subject_is_an_error(
+    shared_data_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = _args("--data", str(shared_data_dir / "mocap"), "--val-subjects", "99")
+    assert eval_robot_cmd.run(args) == 1
+    assert "no clips of subjects" in capsys.readouterr().err
+
+
+def test_bad_override() -> None:
+    with pytest.raises(SystemExit):
+        eval_robot_cmd.run(_args("--set", "w_orientation"))
