@@ -21,6 +21,8 @@ BenchRecord = dict[str, Any]
 TARGETS: dict[str, str] = {
     "solve": "robot_retarget.optimize.benchmark",
     "loop": "robot_retarget.hardware.benchmark",
+    "model": "robot_retarget.nn.benchmark",
+    "pipeline": "robot_retarget.pipeline.benchmark",
 }
 
 

@@ -18,9 +18,15 @@ from robot_retarget.errors import RetargetError
 
 # (command name, module, one-line help). The help lives here too so --help needs no imports.
 COMMANDS: tuple[tuple[str, str, str], ...] = (
+    ("demo", "robot_retarget.cli.demo_cmd", "Built-in demo: clip -> OP3 on a simulated bus."),
+    ("convert", "robot_retarget.cli.convert_cmd", "Retarget BVH clip(s) to a robot trajectory."),
+    ("stream", "robot_retarget.cli.stream_cmd", "Drive a robot live from a clip or mocap stream."),
     ("inspect", "robot_retarget.cli.inspect_cmd", "Describe motion files: mapping, fps, units."),
     ("doctor", "robot_retarget.cli.doctor_cmd", "Check a Dynamixel bus: ports, servos, latency."),
-    ("bench", "robot_retarget.cli.bench_cmd", "Speed benchmarks (median, p99): solve, loop, ..."),
+    ("train", "robot_retarget.cli.train_cmd", "Train a retargeting network on BVH clips."),
+    ("eval", "robot_retarget.cli.eval_cmd", "Evaluate retargeting models on unseen subjects."),
+    ("eval-robot", "robot_retarget.cli.eval_robot_cmd", "Score the pipeline on a robot."),
+    ("bench", "robot_retarget.cli.bench_cmd", "Speed benchmarks: solve, loop, model, pipeline."),
 )
 
 
