@@ -50,6 +50,7 @@ class SafetyLayer(JointBackend):
         self.upper = config.upper
         self.max_velocity = config.max_velocity
         self.period_s = 1.0 / config.control_rate_hz
+        self._names = config.joint_names  # a property that rebuilds its tuple on every read
         self.stats = ClipStats(per_joint=dict.fromkeys(config.joint_names, 0))
         self._prev_q: FloatArray | None = None
         self._prev_t: float | None = None
@@ -77,34 +78,37 @@ class SafetyLayer(JointBackend):
     def clamp(self, cmd: JointCommand) -> JointCommand:
         """The safe version of ``cmd`` (updates the statistics; sends nothing)."""
         q = cmd.q
-        names = self.config.joint_names
+        names = self._names
         if q.shape != (len(names),):
             raise UnsafeCommandError(
                 f"command has shape {q.shape}, robot {self.config.name} has {len(names)} joints; "
                 "nothing was sent"
             )
-        bad = ~np.isfinite(q)
-        if np.any(bad):
+        finite = np.isfinite(q)
+        if not finite.all():
+            bad = ~finite
             joints = tuple(n for n, b in zip(names, bad, strict=True) if b)
             raise UnsafeCommandError(
                 f"command has NaN/inf for joints {', '.join(joints)}; nothing was sent. Check "
                 "the retargeting stage's output",
                 joints=joints,
             )
-        q_pos = np.clip(q, self.lower, self.upper)
+        # minimum(maximum(·)) is np.clip (inputs are finite here) without its wrapper's cost.
+        lower, upper = self.lower, self.upper
+        q_pos = np.minimum(np.maximum(q, lower), upper)
         q_safe = q_pos
         if self._prev_q is not None:
             dt = self.period_s
             if self._prev_t is not None and cmd.t_s > self._prev_t:
                 dt = min(cmd.t_s - self._prev_t, self.period_s)
             max_step = self.max_velocity * dt
-            q_safe = np.clip(q_pos, self._prev_q - max_step, self._prev_q + max_step)
-            q_safe = np.clip(q_safe, self.lower, self.upper)
+            q_safe = np.minimum(np.maximum(q_pos, self._prev_q - max_step), self._prev_q + max_step)
+            q_safe = np.minimum(np.maximum(q_safe, lower), upper)
         pos_clipped = q_pos != q
         step_clipped = q_safe != q_pos
         s = self.stats
         s.commands += 1
-        if np.any(pos_clipped) or np.any(step_clipped):
+        if pos_clipped.any() or step_clipped.any():
             s.commands_clipped += 1
             s.position_clips += int(pos_clipped.sum())
             s.step_clips += int(step_clipped.sum())

@@ -10,6 +10,7 @@ effectors as positions relative to the hips, scaled to the robot.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,7 +80,7 @@ def check_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> Floa
     a = np.asarray(value, dtype=np.float64)
     if a.shape != shape:
         raise SolveError(f"{name} must have shape {shape}, got {a.shape}; no command was produced")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         bad = np.argwhere(~np.isfinite(a))
         raise SolveError(
             f"{name} contains NaN or infinite values (first at index {tuple(bad[0])}); "
@@ -172,3 +173,137 @@ def targets_from_globals(
         rel = (pos[:, idx] - hips[:, None]) * scale
         ee = problem.hip_center + np.einsum("tij,tej->tei", m, rel)
     return ClipTargets(directions=dirs, normals=normals, ee_positions=ee)
+
+
+def _product_table() -> FloatArray:
+    """(16, 4) table T with a ⊗ b = (a bᵀ).flatten() @ T (the Hamilton product)."""
+    basis = np.eye(4)
+    return np.array([quat.mul(basis[a], basis[b]) for a in range(4) for b in range(4)])
+
+
+def _rotation_table() -> FloatArray:
+    """(16, 9) table T with quat.rotate(q, ·) = (q qᵀ).flatten() @ T + I as a 3×3 matrix.
+
+    Read off quat.rotate itself (v + w·t + u × t is quadratic in q): the same linear map for
+    any q, unit or not.
+    """
+    basis = np.eye(4)
+
+    def form(q: FloatArray) -> FloatArray:  # the quadratic part of rotate(q, ·), row-major 3×3
+        return np.asarray((quat.rotate(q[None], np.eye(3)) - np.eye(3)).T.ravel())
+
+    table = np.zeros((4, 4, 9))
+    for a in range(4):
+        table[a, a] = form(basis[a])
+        for b in range(a + 1, 4):
+            # Polarisation: the form of e_a + e_b minus the squares is the cross term.
+            table[a, b] = table[b, a] = 0.5 * (
+                form(basis[a] + basis[b]) - form(basis[a]) - form(basis[b])
+            )
+    return table.reshape(16, 9)
+
+
+class FrameTargetBuilder:
+    """:func:`targets_from_rotations` for one frame at a time (the live path), same numbers.
+
+    Everything that depends only on the robot and ``skeleton`` is computed here once. Per frame,
+    global rotations come from pointer jumping (``G_n ← G_anc(n) ⊗ G_n``, log₂ depth rounds of
+    one (23, 4) product each) and only the vectors the targets use are rotated: each bone offset
+    once, then bone directions and hip axis as fixed sums of them (the root position cancels).
+    """
+
+    def __init__(
+        self,
+        problem: RobotProblem,
+        skeleton: Skeleton,
+        *,
+        end_effectors: bool = False,
+        scale: float = 1.0,
+    ) -> None:
+        if skeleton.names != CANONICAL_JOINTS:
+            raise SolveError(
+                "targets need a canonical skeleton (22 joints in canonical order); map the "
+                "motion onto robot_retarget.skeleton.canonical first "
+                f"(got {len(skeleton.names)} joints)"
+            )
+        j = len(CANONICAL_JOINTS)
+        parents = skeleton.parents
+        # Row j is a sentinel "parent of the root" that holds the identity.
+        parent = [j if p < 0 else p for p in parents] + [j]
+        depth = [0] * j
+        for i in range(1, j):
+            depth[i] = depth[parents[i]] + 1
+        jumps = [parent]
+        while 2 ** len(jumps) < max(depth) + 1:
+            jumps.append([jumps[-1][jumps[-1][i]] for i in range(j + 1)])
+        self._jumps = [np.array(a, dtype=np.int64) for a in jumps]
+        self._glob = np.zeros((j + 1, 4))
+        self._glob[j, 0] = 1.0
+        # chain[n, k] = 1 when bone k (joint k's offset, k ≥ 1) lies on the root → n path.
+        chain = np.zeros((j, j - 1))
+        for n in range(j):
+            k = n
+            while k > 0:
+                chain[n, k - 1] = 1.0
+                k = parents[k]
+        bones = problem.bones
+        starts = [CANONICAL_JOINTS.index(b.canonical) for b in bones]
+        ends = [CANONICAL_JOINTS.index(b.canonical_end) for b in bones]
+        nb = len(bones)
+        rows = [
+            chain[ends] - chain[starts],
+            (chain[Joint.LeftUpLeg] - chain[Joint.RightUpLeg])[None],
+        ]
+        self._ee = end_effectors and bool(problem.ee_frames)
+        if self._ee:
+            idx = [CANONICAL_JOINTS.index(name) for name, _ in problem.ee_frames]
+            hips = 0.5 * (chain[Joint.LeftUpLeg] + chain[Joint.RightUpLeg])
+            rows.append((chain[idx] - hips) * scale)
+        self._sums = np.concatenate(rows)  # bone vectors → (B + 1 + E, 3) canonical vectors
+        # Rotate each bone offset by its parent's global rotation, each rest normal by its
+        # carrier's, in one batched product.
+        self._rot_index = np.array(
+            [parent[i] for i in range(1, j)] + [b.carrier_joint for b in bones], dtype=np.int64
+        )
+        normals_c = np.array([problem.canonical_to_root.T @ b.rest_normal for b in bones])
+        self._vectors = np.concatenate([skeleton.offsets[1:], normals_c])[:, :, None]
+        self._num_offsets = j - 1
+        self._num_bones = nb
+        self._fallback = np.concatenate([np.array([b.rest_axis for b in bones])] * 2)
+        self._body_to_root = problem.body_to_root
+        self._hip_center = problem.hip_center
+        self._mul = _product_table()
+        self._rot = _rotation_table()
+        self._eye = np.eye(3).ravel()
+
+    def __call__(self, local_quats: npt.ArrayLike) -> FrameTargets:
+        """Targets of one frame of canonical local rotations (22, 4) (unit)."""
+        q = check_array("local rotations", local_quats, (len(CANONICAL_JOINTS), 4))
+        g = self._glob
+        g[:-1] = q
+        mul = self._mul
+        for anc in self._jumps:
+            g = (g[anc][:, :, None] * g[:, None, :]).reshape(-1, 16) @ mul
+        sel = g[self._rot_index]
+        mats = (sel[:, :, None] * sel[:, None, :]).reshape(-1, 16) @ self._rot + self._eye
+        rotated = (mats.reshape(-1, 3, 3) @ self._vectors)[:, :, 0]
+        no, nb = self._num_offsets, self._num_bones
+        sums = self._sums @ rotated[:no]  # bone directions, hip axis, end effectors
+        lx, lz = float(sums[nb, 0]), float(sums[nb, 2])
+        n = math.sqrt(lx * lx + lz * lz)
+        if n > 1e-9:
+            lx, lz = lx / n, lz / n
+        else:
+            lx, lz = 1.0, 0.0
+        # Heading-free body frame (forward, left, up) as rows, then canonical → robot root.
+        m = self._body_to_root @ np.array(((-lz, 0.0, lx), (lx, 0.0, lz), (0.0, 1.0, 0.0)))
+        vecs = np.concatenate([sums[:nb], rotated[no:]]) @ m.T
+        norms = np.sqrt(np.einsum("ij,ij->i", vecs, vecs))[:, None]
+        if norms.min() > 1e-9:
+            vecs /= norms
+        else:
+            vecs = _unit_rows(vecs, self._fallback)
+        ee = None
+        if self._ee:
+            ee = self._hip_center + sums[nb + 1 :] @ m.T
+        return FrameTargets(directions=vecs[:nb], normals=vecs[nb:], ee_positions=ee)

@@ -37,7 +37,6 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     from robot_retarget.hardware.types import JointCommand
     from robot_retarget.motion.synthetic import demo_motion
     from robot_retarget.nn.inference import load_model
-    from robot_retarget.optimize import targets_from_rotations
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.pipeline.recorder import RecordingBackend
     from robot_retarget.pipeline.step import RetargetStep
@@ -62,7 +61,6 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     )
     safety.connect()
     kind = wire.KIND_POSITIONS if args.positions else wire.KIND_ROTATIONS
-    problem = step.retargeter.problem
     times: dict[str, list[float]] = {s: [] for s in STAGES}
     n = motion.num_frames
     for k in range(args.warmup + args.frames):
@@ -75,11 +73,9 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
         t1 = time.perf_counter()
         if frame is None:
             raise RuntimeError(f"benchmark packet {k} was dropped: {receiver.stats.summary()}")
-        quats, root_pos = step.online.step(frame.local_quats, frame.root_pos)
+        quats, _ = step.online.step(frame.local_quats, frame.root_pos)
         t2 = time.perf_counter()
-        targets = targets_from_rotations(
-            problem, step.robot_skeleton, quats[None], root_pos=root_pos[None]
-        ).frame(0)
+        targets = step.target_builder(quats)
         t3 = time.perf_counter()
         result = step.retargeter.solve(targets, dt)
         t4 = time.perf_counter()

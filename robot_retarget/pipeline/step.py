@@ -13,8 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter, load_model
-from robot_retarget.optimize import Retargeter, SolveResult, targets_from_rotations
+from robot_retarget.nn.inference import LoadedModel, load_model
+from robot_retarget.optimize import Retargeter, SolveResult
+from robot_retarget.optimize.targets import FrameTargetBuilder
+from robot_retarget.pipeline.fast_copy import OnlineStep, online_retargeter
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.skeleton.skeleton import Skeleton
@@ -61,12 +63,17 @@ class RetargetStep:
         self.model = load_model(model) if isinstance(model, str) else model
         self.robot_skeleton = robot_canonical_skeleton(config)
         self.retargeter = retargeter if retargeter is not None else Retargeter(config)
+        # Per-skeleton constants of the targets, computed once (the per-frame path).
+        self.target_builder = FrameTargetBuilder(self.retargeter.problem, self.robot_skeleton)
         self.stats = StepStats()
         self.set_source(source_skeleton)
 
     def set_source(self, source_skeleton: Skeleton) -> None:
-        """A new performer: fresh network state for their rest offsets."""
-        self.online = OnlineRetargeter(
+        """A new performer: fresh network state for their rest offsets.
+
+        The copy baselines run as numpy (:mod:`robot_retarget.pipeline.fast_copy`), every
+        other model through torch; the same numbers either way."""
+        self.online: OnlineStep = online_retargeter(
             self.model, source_skeleton.offsets, self.robot_skeleton.offsets
         )
 
@@ -97,10 +104,7 @@ class RetargetStep:
         t0 = time.perf_counter()
         quats, root = self.online.step(local_quats, root_pos)
         t1 = time.perf_counter()
-        problem = self.retargeter.problem
-        targets = targets_from_rotations(
-            problem, self.robot_skeleton, quats[None], root_pos=root[None]
-        ).frame(0)
+        targets = self.target_builder(quats)
         t2 = time.perf_counter()
         result = self.retargeter.solve(targets, dt_s, q_prev=q_prev)
         t3 = time.perf_counter()

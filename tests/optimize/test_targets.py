@@ -3,19 +3,29 @@
 from __future__ import annotations
 
 import math
+from functools import cache
+from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from robot_retarget.errors import SolveError
 from robot_retarget.geometry import quaternion as quat
+from robot_retarget.motion.human_motion import load_motion
+from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.optimize.formulation import RobotProblem
 from robot_retarget.optimize.targets import (
     ClipTargets,
+    FrameTargetBuilder,
     targets_from_globals,
     targets_from_rotations,
 )
+from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.loader import load_robot_config
 from robot_retarget.skeleton.canonical import Joint, default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 
@@ -23,6 +33,11 @@ from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 @pytest.fixture(scope="module")
 def problem(op3: RobotConfig) -> RobotProblem:
     return RobotProblem(op3)
+
+
+@cache
+def _op3_problem() -> RobotProblem:  # cached: hypothesis examples share one
+    return RobotProblem(load_robot_config("op3"))
 
 
 def _rest(frames: int = 1) -> np.ndarray:
@@ -106,3 +121,94 @@ def test_globals_path_matches_rotations_path(problem: RobotProblem) -> None:
     np.testing.assert_array_equal(a.ee_positions, b.ee_positions)
     with pytest.raises(SolveError, match="positions"):
         targets_from_globals(problem, pos[0], glob)
+
+
+# --------------------------------------------------------------- FrameTargetBuilder (live path)
+def _assert_same_targets(
+    problem: RobotProblem,
+    skeleton: Skeleton,
+    local_quats: np.ndarray,
+    *,
+    end_effectors: bool = False,
+    scale: float = 1.0,
+) -> None:
+    """The per-frame builder equals targets_from_rotations frame by frame (to 1e-12)."""
+    ref = targets_from_rotations(
+        problem,
+        skeleton,
+        local_quats,
+        root_pos=np.full((len(local_quats), 3), 3.0),
+        end_effectors=end_effectors,
+        scale=scale,
+    )
+    build = FrameTargetBuilder(problem, skeleton, end_effectors=end_effectors, scale=scale)
+    for t in range(len(local_quats)):
+        got, want = build(local_quats[t]), ref.frame(t)
+        np.testing.assert_allclose(got.directions, want.directions, rtol=0, atol=1e-12)
+        assert want.normals is not None
+        assert got.normals is not None
+        np.testing.assert_allclose(got.normals, want.normals, rtol=0, atol=1e-12)
+        if want.ee_positions is None:
+            assert got.ee_positions is None
+        else:
+            assert got.ee_positions is not None
+            np.testing.assert_allclose(got.ee_positions, want.ee_positions, rtol=0, atol=1e-12)
+        assert got.ee_weights is None
+        assert got.root_height_m is None
+
+
+@pytest.mark.parametrize("robot", ["op3", "poppy"])
+@pytest.mark.parametrize("end_effectors", [False, True])
+def test_frame_builder_equals_clip_targets_on_the_demo(
+    robot: str, end_effectors: bool, request: pytest.FixtureRequest
+) -> None:
+    config: RobotConfig = request.getfixturevalue(robot)
+    skeleton = robot_canonical_skeleton(config)
+    quats = demo_motion(fps=10.0).local_quats
+    _assert_same_targets(
+        RobotProblem(config), skeleton, quats, end_effectors=end_effectors, scale=0.8
+    )
+
+
+@settings(max_examples=25, deadline=None)
+@given(arrays(np.float64, (4, 22, 3), elements=st.floats(-3.0, 3.0)))
+def test_frame_builder_equals_clip_targets_on_wild_poses(rotvecs: np.ndarray) -> None:
+    problem = _op3_problem()
+    _assert_same_targets(
+        problem,
+        default_canonical_skeleton(),
+        quat.from_rotation_vector(rotvecs),
+        end_effectors=True,
+    )
+
+
+def test_frame_builder_falls_back_like_the_clip_path(problem: RobotProblem) -> None:
+    """Hips axis vertical (no heading) and a zero-length bone: the same fallbacks."""
+    q = _rest(2)
+    q[0, Joint.Hips] = quat.from_axis_angle([0.0, 0.0, 1.0], math.pi / 2)
+    offsets = default_canonical_skeleton().offsets.copy()
+    offsets[Joint.LeftForeArm] = 0.0  # the upper arm (LeftArm → LeftForeArm) has no length
+    skeleton = default_canonical_skeleton().with_offsets(offsets)
+    _assert_same_targets(problem, skeleton, q)
+
+
+@pytest.mark.data
+def test_frame_builder_equals_clip_targets_on_real_mocap(
+    problem: RobotProblem, op3: RobotConfig, shared_data_dir: Path
+) -> None:
+    motion = load_motion(shared_data_dir / "mocap" / "02" / "02_01.bvh", max_frames=240)
+    _assert_same_targets(problem, robot_canonical_skeleton(op3), motion.local_quats[::4])
+    _assert_same_targets(problem, motion.skeleton, motion.local_quats[::4], end_effectors=True)
+
+
+def test_frame_builder_rejects_bad_input(problem: RobotProblem) -> None:
+    build = FrameTargetBuilder(problem, default_canonical_skeleton())
+    q = _rest()[0]
+    q[3, 1] = np.nan
+    with pytest.raises(SolveError, match="NaN"):
+        build(q)
+    with pytest.raises(SolveError, match="shape"):
+        build(_rest()[0, :21])
+    bad = Skeleton(("a", "b"), (-1, 0), np.zeros((2, 3)))
+    with pytest.raises(SolveError, match="canonical skeleton"):
+        FrameTargetBuilder(problem, bad)

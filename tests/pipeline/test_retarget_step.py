@@ -1,13 +1,16 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion
-from robot_retarget.optimize import SolveStatus
+from robot_retarget.nn.inference import OnlineRetargeter, load_model
+from robot_retarget.optimize import Retargeter, SolveStatus, targets_from_rotations
+from robot_retarget.pipeline.fast_copy import FastCopyRetargeter
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 
@@ -63,3 +66,29 @@ def test_set_source_restarts_the_network(step: RetargetStep, demo: HumanMotion) 
     b = step(demo.local_quats[5], demo.root_pos[5], 0.01)
     assert np.all(np.isfinite(b.q))
     assert a.q.shape == b.q.shape
+
+
+@pytest.mark.parametrize("name", ["copy", "copy-scaled"])
+def test_fast_paths_give_the_reference_commands(
+    name: str, op3: RobotConfig, retargeter: Retargeter, demo: HumanMotion
+) -> None:
+    """numpy copy + per-frame targets = torch OnlineRetargeter + targets_from_rotations."""
+    model = load_model(name)
+    step = RetargetStep(op3, model, demo.skeleton, retargeter=retargeter)
+    assert isinstance(step.online, FastCopyRetargeter)
+    online = OnlineRetargeter(model, demo.skeleton.offsets, step.robot_skeleton.offsets)
+    dt = 1 / 30
+    retargeter.reset()
+    want = []
+    for t in range(30):
+        quats, root = online.step(demo.local_quats[t], demo.root_pos[t])
+        targets = targets_from_rotations(
+            retargeter.problem, step.robot_skeleton, quats[None], root_pos=root[None]
+        ).frame(0)
+        want.append((retargeter.solve(targets, dt).q, root, quats[0]))
+    step.reset()
+    for t in range(30):
+        out = step(demo.local_quats[t], demo.root_pos[t], dt)
+        np.testing.assert_allclose(out.q, want[t][0], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(out.root_pos, want[t][1], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(out.root_quat, want[t][2], rtol=0, atol=1e-12)
