@@ -1,9 +1,13 @@
-"""Suite-wide fixtures: where the shared data lives, and the hypothesis profile."""
+"""Suite-wide fixtures: where the shared data lives, the hypothesis profile, and a deadline
+for every test."""
 
 from __future__ import annotations
 
 import os
+import signal
+from collections.abc import Iterator
 from pathlib import Path
+from types import FrameType
 
 import pytest
 from hypothesis import settings
@@ -26,3 +30,28 @@ def shared_data_dir() -> Path:
             "(mocap/, robots/)"
         )
     return path
+
+
+DEFAULT_TIME_LIMIT_S = 120
+
+
+@pytest.fixture(autouse=True)
+def _time_limit(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Fail, never hang: a test running past its module's ``TIME_LIMIT_S`` (default
+    DEFAULT_TIME_LIMIT_S) raises TimeoutError. Tests with serial ports, sockets and threads
+    must not be able to stall CI."""
+    if not hasattr(signal, "SIGALRM"):
+        yield
+        return
+    seconds = int(getattr(request.module, "TIME_LIMIT_S", DEFAULT_TIME_LIMIT_S))
+
+    def _expire(signum: int, frame: FrameType | None) -> None:
+        raise TimeoutError(f"test exceeded its {seconds} s time limit")
+
+    old = signal.signal(signal.SIGALRM, _expire)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

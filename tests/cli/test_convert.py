@@ -4,10 +4,7 @@ from __future__ import annotations
 
 import argparse
 import shutil
-import signal
-from collections.abc import Iterator
 from pathlib import Path
-from types import FrameType
 
 import numpy as np
 import pytest
@@ -20,20 +17,6 @@ from robot_retarget.robot.loader import load_robot_config
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "motion"
 TIME_LIMIT_S = 120
-
-
-@pytest.fixture(autouse=True)
-def _time_limit() -> Iterator[None]:
-    def _expire(signum: int, frame: FrameType | None) -> None:
-        raise TimeoutError(f"test exceeded {TIME_LIMIT_S} s")
-
-    old = signal.signal(signal.SIGALRM, _expire)
-    signal.alarm(TIME_LIMIT_S)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def _run(*argv: str) -> int:

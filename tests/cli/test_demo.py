@@ -3,10 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import signal
-from collections.abc import Iterator
 from pathlib import Path
-from types import FrameType
 
 import pytest
 from PIL import Image
@@ -16,20 +13,6 @@ from robot_retarget.errors import RetargetError
 from robot_retarget.motion.trajectory import RobotTrajectory
 
 TIME_LIMIT_S = 90
-
-
-@pytest.fixture(autouse=True)
-def _time_limit() -> Iterator[None]:
-    def _expire(signum: int, frame: FrameType | None) -> None:
-        raise TimeoutError(f"test exceeded {TIME_LIMIT_S} s")
-
-    old = signal.signal(signal.SIGALRM, _expire)
-    signal.alarm(TIME_LIMIT_S)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def _args(*argv: str) -> argparse.Namespace:

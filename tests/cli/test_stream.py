@@ -11,9 +11,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
-from types import FrameType
 
 import numpy as np
 import pytest
@@ -28,20 +26,6 @@ from robot_retarget.robot.loader import load_robot_config
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "tests" / "fixtures" / "motion"
 TIME_LIMIT_S = 90
-
-
-@pytest.fixture(autouse=True)
-def _time_limit() -> Iterator[None]:
-    def _expire(signum: int, frame: FrameType | None) -> None:
-        raise TimeoutError(f"test exceeded {TIME_LIMIT_S} s")
-
-    old = signal.signal(signal.SIGALRM, _expire)
-    signal.alarm(TIME_LIMIT_S)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def _args(*argv: str) -> argparse.Namespace:

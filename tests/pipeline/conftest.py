@@ -1,12 +1,9 @@
 """Fixtures for the pipeline tests: OP3, one compiled Retargeter for the session, the copy
-model, short motions and a per-test time limit (nothing may hang CI)."""
+model and short motions (the suite-wide conftest gives every test a time limit)."""
 
 from __future__ import annotations
 
-import signal
-from collections.abc import Iterator
 from pathlib import Path
-from types import FrameType
 
 import numpy as np
 import pytest
@@ -20,23 +17,6 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.loader import load_robot_config
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "motion"
-TEST_TIME_LIMIT_S = 60
-
-
-@pytest.fixture(autouse=True)
-def _time_limit() -> Iterator[None]:
-    """Fail (not hang) a test that runs past TEST_TIME_LIMIT_S."""
-
-    def _expire(signum: int, frame: FrameType | None) -> None:
-        raise TimeoutError(f"test exceeded {TEST_TIME_LIMIT_S} s")
-
-    old = signal.signal(signal.SIGALRM, _expire)
-    signal.alarm(TEST_TIME_LIMIT_S)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
 
 
 @pytest.fixture(scope="session")
