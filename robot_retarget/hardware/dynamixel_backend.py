@@ -39,6 +39,7 @@ from robot_retarget.hardware.control_table import (
     decode_sign_magnitude,
     error_bit_names,
 )
+from robot_retarget.hardware.safety import UnsafeCommandError
 from robot_retarget.hardware.types import FloatArray, IntArray, JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_models import servo_model
@@ -61,6 +62,10 @@ class ModelMismatchError(HardwareError):
 
 class NotConnectedError(HardwareError):
     """The backend is used before connect() or after disconnect() / a fault."""
+
+
+# Rounding slack for the joint-limit check: commands come from float64 math on the limits.
+_LIMIT_TOL_RAD = 1e-9
 
 
 @dataclass
@@ -100,6 +105,8 @@ class DynamixelBackend(JointBackend):
             raise ValueError(f"ramp_speed_fraction must be in (0, 1], got {ramp_speed_fraction}")
         self.config = config
         self.units = ServoUnits(config)
+        self._lower = config.lower
+        self._upper = config.upper
         self.ramp_speed_fraction = ramp_speed_fraction
         self.handle_signals = handle_signals
         self._sleep = sleep
@@ -326,6 +333,22 @@ class DynamixelBackend(JointBackend):
         self._last_q = np.asarray(q, dtype=np.float64).copy()
         return sent
 
+    def _check_joint_limits(self, q: FloatArray) -> None:
+        """Defence in depth: the SafetyLayer in front clamps to the limits, but a backend used on
+        its own must not drive a joint into its mechanical stop either. Refused, not clamped
+        (clamping here would hide an upstream bug); send() then switches torque off, as for every
+        exception."""
+        outside = (q < self._lower - _LIMIT_TOL_RAD) | (q > self._upper + _LIMIT_TOL_RAD)
+        if not np.any(outside):
+            return
+        names = tuple(j.name for j, bad in zip(self.config.joints, outside, strict=True) if bad)
+        raise UnsafeCommandError(
+            f"command outside the joint limits of {', '.join(names)} "
+            f"(q = {np.round(q[outside], 4).tolist()} rad); nothing was sent, torque is off. "
+            "Put a SafetyLayer in front of the backend to clamp commands",
+            joints=names,
+        )
+
     def send(self, cmd: JointCommand) -> JointCommand:
         self._require_ready()
         q = cmd.q
@@ -337,6 +360,7 @@ class DynamixelBackend(JointBackend):
         if not np.all(np.isfinite(q)):
             raise HardwareError(f"command contains NaN/inf ({q}); nothing was sent")
         try:
+            self._check_joint_limits(q)
             ticks = self.units.to_ticks(q)  # range check before anything moves
             if not self._torque_on:
                 self._enable_torque_at_present()

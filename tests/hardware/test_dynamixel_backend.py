@@ -10,7 +10,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from robot_retarget.errors import CommunicationError, ServoFaultError
+from robot_retarget.errors import CommunicationError, HardwareError, ServoFaultError
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import DynamixelBus
 from robot_retarget.hardware.dynamixel_backend import (
@@ -18,7 +18,7 @@ from robot_retarget.hardware.dynamixel_backend import (
     ModelMismatchError,
     NotConnectedError,
 )
-from robot_retarget.hardware.safety import SafetyLayer
+from robot_retarget.hardware.safety import SafetyLayer, UnsafeCommandError
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_units import ServoUnits
@@ -284,9 +284,31 @@ def test_nan_is_refused_and_torque_off_on_exception(
             backend.send(JointCommand(bad, 0.01))
         sim.settle()
         assert len(sim.log.packets) == n_packets  # nothing sent for the NaN command
-        with pytest.raises(ValueError, match="outside"):
+        with pytest.raises(HardwareError, match="outside the joint limits"):
             backend.send(JointCommand(op3.init_pose + 10.0, 0.02))  # beyond the servo's range
         sim.settle()
+        assert len(sim.log.packets) > n_packets  # the torque-off write, and no goal
+        assert not any(s.torque_on for s in sim.servos.values())
+
+
+def test_command_outside_joint_limits_is_refused_without_a_safety_layer(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
+) -> None:
+    """Within the servo's range but past a joint's mechanical limit: the backend alone refuses
+    it, names the joint, sends no goal and switches torque off."""
+    sim = next(iter(op3_sim.values()))
+    knee = op3.joint_index("l_knee")
+    with DynamixelBackend(op3, make_buses(op3, op3_sim)) as backend:
+        backend.send(JointCommand(op3.init_pose, 0.0))
+        sim.settle()
+        goals_before = {sid: s.get("goal_position") for sid, s in sim.servos.items()}
+        bad = op3.init_pose.copy()
+        bad[knee] = op3.upper[knee] + 0.2
+        with pytest.raises(UnsafeCommandError, match="l_knee") as info:
+            backend.send(JointCommand(bad, 0.01))
+        assert info.value.joints == ("l_knee",)
+        sim.settle()
+        assert {sid: s.get("goal_position") for sid, s in sim.servos.items()} == goals_before
         assert not any(s.torque_on for s in sim.servos.values())
 
 
