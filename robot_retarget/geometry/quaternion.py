@@ -14,6 +14,8 @@ import numpy.typing as npt
 FloatArray = npt.NDArray[np.float64]
 
 _EPS = 1e-12
+# Below this |a × b| (with a · b < 0) the shortest-arc axis is rounding noise: see from_two_vectors.
+_ANTIPARALLEL_CROSS = 1e-8
 
 
 def as_float_array(x: npt.ArrayLike) -> FloatArray:
@@ -285,17 +287,23 @@ def twist_angle(q: npt.ArrayLike, axis: npt.ArrayLike) -> FloatArray:
 
 
 def from_two_vectors(a: npt.ArrayLike, b: npt.ArrayLike) -> FloatArray:
-    """Shortest-arc rotation taking direction a onto direction b."""
+    """Shortest-arc rotation taking direction a onto direction b.
+
+    Axis a × b, angle atan2(|a × b|, a · b). Near antiparallel directions the shortest arc's
+    axis is ill-conditioned (a × b is then mostly rounding, direction error ≈ 1e-16 / |a × b|):
+    below |a × b| = 1e-8 with a · b < 0 a fixed axis perpendicular to a is used instead, which
+    keeps the image of a within ≈ 2e-8 of b everywhere.
+    """
     ua = _unit(a)
     ub = _unit(b)
+    c = _cross(ua, ub)
+    s = np.linalg.norm(c, axis=-1, keepdims=True)
     d = np.sum(ua * ub, axis=-1, keepdims=True)
-    c = np.cross(ua, ub)
-    q = np.concatenate([1.0 + d, c], axis=-1)
-    # Opposite vectors: any axis perpendicular to a.
-    opposite = (1.0 + d[..., 0]) < 1e-12
-    if np.any(opposite):
-        helper = np.where(np.abs(ua[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-        perp = np.cross(ua, helper)
-        perp = perp / np.linalg.norm(perp, axis=-1, keepdims=True)
-        q = np.where(opposite[..., None], np.concatenate([np.zeros_like(d), perp], -1), q)
-    return normalize(q)
+    half = 0.5 * np.arctan2(s, d)
+    # Parallel (any axis: the angle is ~0) or nearly opposite (a × b is rounding noise).
+    helper = np.where(np.abs(ua[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    perp = _cross(ua, helper)
+    perp = perp / np.linalg.norm(perp, axis=-1, keepdims=True)
+    degenerate = (s < 1e-200) | ((s < _ANTIPARALLEL_CROSS) & (d < 0.0))
+    axis = np.where(degenerate, perp, c / np.where(degenerate, 1.0, s))
+    return np.concatenate([np.cos(half), np.sin(half) * axis], axis=-1)

@@ -285,22 +285,28 @@ def twist_angle(q: Tensor, axis: Tensor) -> Tensor:
 
 
 def from_two_vectors(a: Tensor, b: Tensor) -> Tensor:
-    """Shortest-arc rotation taking direction a onto direction b."""
+    """Shortest-arc rotation taking direction a onto direction b (axis a × b, angle
+    atan2(|a × b|, a · b)); nearly opposite directions (|a × b| < 1e-8, a · b < 0) turn about a
+    fixed axis perpendicular to a, as in the numpy version."""
     shape = np.broadcast_shapes(a.shape, b.shape)
     ua = _unit(a).expand(shape)
     ub = _unit(b).expand(shape)
     d = torch.sum(ua * ub, dim=-1, keepdim=True)
-    q = torch.cat([1.0 + d, _cross(ua, ub)], dim=-1)
-    # Opposite vectors: a half-turn about any axis perpendicular to a.
-    opposite = (1.0 + d) < 1e-12
+    c = _cross(ua, ub)
+    s2 = torch.sum(c * c, dim=-1, keepdim=True)
+    # Parallel, or nearly opposite (a × b is rounding noise, and sqrt / division would have no
+    # gradient at zero): a fixed perpendicular axis.
+    degenerate = (s2 <= torch.finfo(s2.dtype).tiny) | ((s2 < 1e-16) & (d < 0.0))
+    s = torch.sqrt(torch.where(degenerate, torch.ones_like(s2), s2))
+    half = 0.5 * torch.atan2(torch.where(degenerate, torch.zeros_like(s), s), d)
     x_hat = torch.zeros_like(ua)
     x_hat[..., 0] = 1.0
     y_hat = torch.zeros_like(ua)
     y_hat[..., 1] = 1.0
     helper = torch.where(torch.abs(ua[..., :1]) < 0.9, x_hat, y_hat)
     perp = _unit(_cross(ua, helper))
-    q = torch.where(opposite, torch.cat([torch.zeros_like(d), perp], dim=-1), q)
-    return normalize(q)
+    axis = torch.where(degenerate, perp, c / s)
+    return torch.cat([torch.cos(half), torch.sin(half) * axis], dim=-1)
 
 
 # --- Euler angles -------------------------------------------------------------------------
