@@ -16,7 +16,6 @@ import dataclasses
 import math
 import re
 import socket
-import threading
 import time
 from collections.abc import Callable
 
@@ -29,11 +28,9 @@ from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources.base import (
     DEFAULT_QUEUE_FRAMES,
-    FrameQueue,
-    MotionSource,
     SourceFrame,
-    SourceStats,
 )
+from robot_retarget.sources.socket_source import SocketSource
 from robot_retarget.sources.udp import check_bind_address
 
 MAX_HEADER_BYTES = 1 << 20
@@ -63,7 +60,7 @@ def split_header(text: str) -> tuple[str, float, int] | None:
     return None
 
 
-class TcpBvhSource(MotionSource):
+class TcpBvhSource(SocketSource):
     def __init__(
         self,
         host: str,
@@ -78,12 +75,8 @@ class TcpBvhSource(MotionSource):
         self.host = host
         self.port = port
         self.connect_timeout_s = connect_timeout_s
-        self.stats = SourceStats()
+        super().__init__(max_queue)
         self._clock = clock
-        self._queue = FrameQueue(self.stats, max_queue)
-        self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
         self._template: BvhClip | None = None
         self._first: HumanMotion | None = None
         self._dt = 0.0
@@ -122,12 +115,8 @@ class TcpBvhSource(MotionSource):
         except BaseException:
             sock.close()
             raise
-        sock.settimeout(0.05)
-        self._sock = sock
         self._pending = rest
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="tcp-bvh-source", daemon=True)
-        self._thread.start()
+        self._start_receiver(sock, "tcp-bvh-source")
 
     def _read_header(self, sock: socket.socket) -> bytes:
         data = b""
@@ -173,18 +162,6 @@ class TcpBvhSource(MotionSource):
             raise SourceError(f"tcp-bvh skeleton cannot be mapped: {exc}") from exc
         self._dt = dt
         return text[consumed:].encode("utf-8")  # frame lines that came with the header
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-            self._thread = None
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None
-
-    def poll(self, now_s: float) -> list[SourceFrame]:
-        return self._queue.drain()
 
     def _run(self) -> None:
         sock = self._sock

@@ -11,7 +11,6 @@ from __future__ import annotations
 import hmac
 import ipaddress
 import socket
-import threading
 import time
 from collections.abc import Callable
 
@@ -24,13 +23,11 @@ from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources import wire
 from robot_retarget.sources.base import (
     DEFAULT_QUEUE_FRAMES,
-    FrameQueue,
-    MotionSource,
     SequenceFilter,
     SourceFrame,
-    SourceStats,
 )
 from robot_retarget.sources.from_positions import PositionsToRotations
+from robot_retarget.sources.socket_source import SocketSource
 
 DEFAULT_PORT = 9750
 _RECV_BYTES = 65536  # larger than any valid packet, so oversized ones are seen whole
@@ -56,7 +53,7 @@ def check_bind_address(host: str, allow_remote: bool, what: str) -> None:
         )
 
 
-class UdpSource(MotionSource):
+class UdpSource(SocketSource):
     """Receives frames on ``host:port`` (port 0: any free port, see :attr:`address`)."""
 
     def __init__(
@@ -75,16 +72,12 @@ class UdpSource(MotionSource):
         self.host = host
         self.port = port
         self.token = token
-        self.stats = SourceStats()
+        super().__init__(max_queue)
         self._skeleton = skeleton or default_canonical_skeleton()
         self._fps = nominal_fps
         self._clock = clock
-        self._queue = FrameQueue(self.stats, max_queue)
         self._filter = SequenceFilter(self.stats)
         self._positions = PositionsToRotations(self._skeleton)
-        self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
 
     @property
     def skeleton(self) -> Skeleton:
@@ -117,23 +110,7 @@ class UdpSource(MotionSource):
                 f"cannot bind UDP {self.host}:{self.port} ({exc}); is another stream running? "
                 "choose another port"
             ) from exc
-        sock.settimeout(0.05)  # lets the thread notice stop() quickly
-        self._sock = sock
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="udp-source", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-            self._thread = None
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None
-
-    def poll(self, now_s: float) -> list[SourceFrame]:
-        return self._queue.drain()
+        self._start_receiver(sock, "udp-source")
 
     def _run(self) -> None:
         sock = self._sock
