@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.motion.human_motion import standing_height
+from robot_retarget.motion.human_motion import skeleton_height
 from robot_retarget.skeleton.canonical import Joint
 from robot_retarget.skeleton.skeleton import Skeleton
 
@@ -13,18 +13,8 @@ FloatArray = npt.NDArray[np.float64]
 
 _SIDES = ("Left", "Right")
 
-
-def skeleton_height(skeleton: Skeleton) -> float:
-    """Standing height (m) with straightened legs, as HumanMotion.height_m measures it."""
-    rest = skeleton.rest_positions()
-    return standing_height(
-        rest[Joint.Hips],
-        rest[Joint.Head],
-        [rest[Joint[s + "UpLeg"]] for s in _SIDES],
-        [rest[Joint[s + "Leg"]] for s in _SIDES],
-        [rest[Joint[s + "Foot"]] for s in _SIDES],
-        [rest[Joint[s + "ToeBase"]] for s in _SIDES],
-    )
+# Height is measured as HumanMotion.height_m measures it; re-exported for the metrics.
+__all__ = ["arm_length", "leg_length", "skeleton_height"]
 
 
 def arm_length(skeleton: Skeleton) -> float:

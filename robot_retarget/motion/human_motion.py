@@ -57,6 +57,20 @@ def standing_height(
     return float(head_top[1] - hips[1] + np.mean(legs))
 
 
+def skeleton_height(skeleton: Skeleton) -> float:
+    """Standing height (m) of a canonical skeleton: :func:`standing_height` of its rest pose."""
+    rest = skeleton.rest_positions()
+    sides = ("Left", "Right")
+    return standing_height(
+        rest[Joint.Hips],
+        rest[Joint.Head],
+        [rest[Joint[s + "UpLeg"]] for s in sides],
+        [rest[Joint[s + "Leg"]] for s in sides],
+        [rest[Joint[s + "Foot"]] for s in sides],
+        [rest[Joint[s + "ToeBase"]] for s in sides],
+    )
+
+
 @dataclass(frozen=True, eq=False)
 class HumanMotion:
     """A motion on the canonical skeleton (robot_retarget.skeleton.canonical).
@@ -106,19 +120,7 @@ class HumanMotion:
         object.__setattr__(self, "root_pos", root)
         object.__setattr__(self, "fps", float(self.fps))
         if math.isnan(self.height_m):
-            object.__setattr__(self, "height_m", self._skeleton_height())
-
-    def _skeleton_height(self) -> float:
-        rest = self.skeleton.rest_positions()
-        sides = ("Left", "Right")
-        return standing_height(
-            rest[Joint.Hips],
-            rest[Joint.Head],
-            [rest[Joint[s + "UpLeg"]] for s in sides],
-            [rest[Joint[s + "Leg"]] for s in sides],
-            [rest[Joint[s + "Foot"]] for s in sides],
-            [rest[Joint[s + "ToeBase"]] for s in sides],
-        )
+            object.__setattr__(self, "height_m", skeleton_height(self.skeleton))
 
     # --- sizes ---------------------------------------------------------------------------
 

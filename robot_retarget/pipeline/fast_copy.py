@@ -21,6 +21,7 @@ from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.copy import CopyModel, CopyScaledModel
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
+from robot_retarget.skeleton.skeleton import Skeleton
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -40,9 +41,7 @@ class OnlineStep(Protocol):
 
 def rest_height_m(offsets: FloatArray) -> float:
     """Vertical extent of a canonical skeleton's rest pose (``nn.features.skeleton_height``)."""
-    pos = np.zeros((_J, 3))
-    for i in range(1, _J):  # the root's own offset never moves a joint
-        pos[i] = pos[CANONICAL_PARENTS[i]] + offsets[i]
+    pos = Skeleton(CANONICAL_JOINTS, CANONICAL_PARENTS, offsets).rest_positions()
     return float(pos[:, 1].max() - pos[:, 1].min())
 
 
