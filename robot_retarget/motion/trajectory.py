@@ -50,6 +50,18 @@ def _optional(value: npt.ArrayLike | None, shape: tuple[int, ...], name: str) ->
     return arr
 
 
+def _format_of(p: Path) -> str:
+    """The file's suffix, lower case, if it is a trajectory format this module writes."""
+    suffix = p.suffix.lower()
+    if suffix not in FORMATS:
+        raise MotionFormatError(
+            f"unsupported trajectory file type {p.suffix or '(none)'!r}; use one of "
+            f"{', '.join(FORMATS)}",
+            path=p,
+        )
+    return suffix
+
+
 @dataclass(frozen=True, eq=False)
 class RobotTrajectory:
     """Joint angles ``q`` (T, J) in radians at ``fps``; frame k is at ``t0 + k / fps`` s.
@@ -123,16 +135,11 @@ class RobotTrajectory:
     def write(self, path: str | Path, *, overwrite: bool = False) -> Path:
         """Write as CSV, JSON or NPZ, chosen by the file suffix."""
         p = Path(path)
-        suffix = p.suffix.lower()
-        if suffix not in FORMATS:
-            raise MotionFormatError(
-                f"unsupported trajectory file type {p.suffix or '(none)'!r}; use one of "
-                f"{', '.join(FORMATS)}",
-                path=p,
-            )
+        suffix = _format_of(p)
         if p.exists() and not overwrite:
             raise MotionFormatError(
-                "the file already exists; pass overwrite=True (or --overwrite) to replace it",
+                "the file already exists; pass overwrite=True (--force on the command line) to "
+                "replace it",
                 path=p,
             )
         self.check_finite(p)
@@ -151,13 +158,7 @@ class RobotTrajectory:
     def read(cls, path: str | Path) -> RobotTrajectory:
         """Read a CSV, JSON or NPZ trajectory (chosen by suffix)."""
         p = Path(path)
-        suffix = p.suffix.lower()
-        if suffix not in FORMATS:
-            raise MotionFormatError(
-                f"unsupported trajectory file type {p.suffix or '(none)'!r}; use one of "
-                f"{', '.join(FORMATS)}",
-                path=p,
-            )
+        suffix = _format_of(p)
         try:
             if suffix == ".csv":
                 traj = _read_csv(p)
