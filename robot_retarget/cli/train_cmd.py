@@ -26,15 +26,13 @@ class TrainArgumentError(RetargetError):
     """A command-line value cannot be used (names the option and what is allowed)."""
 
 
-def _model_config(pairs: list[str]) -> dict[str, Any]:
+def _model_config(pairs: list[str], option: str = "--model-config") -> dict[str, Any]:
     """KEY=VALUE strings → dict; values parsed as JSON when they are JSON (numbers, bools)."""
     out: dict[str, Any] = {}
     for pair in pairs:
         key, sep, value = pair.partition("=")
         if not sep or not key:
-            raise TrainArgumentError(
-                f"--model-config {pair!r}: expected KEY=VALUE, e.g. hidden_size=256"
-            )
+            raise TrainArgumentError(f"{option} {pair!r}: expected KEY=VALUE, e.g. hidden_size=256")
         try:
             out[key] = json.loads(value)
         except json.JSONDecodeError:
@@ -50,7 +48,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         DEFAULT_WINDOW_FRAMES,
     )
 
-    parser.add_argument("--model", required=True, choices=("nkn", "pmnet"), help="network")
+    parser.add_argument(
+        "--model", required=True, choices=("nkn", "pmnet", "residual"), help="network"
+    )
     parser.add_argument(
         "--data", default=str(_DEFAULT_DATA), help=f"folder of BVH clips (default {_DEFAULT_DATA})"
     )
@@ -83,6 +83,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="model constructor argument, e.g. hidden_size=256 (repeatable)",
+    )
+    parser.add_argument(
+        "--loss-weight",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one of the model's loss weights, e.g. bone=3 (repeatable; defaults: "
+        "the papers' for nkn and pmnet, robot_retarget.nn.models.training for residual)",
     )
     parser.add_argument(
         "--disc-config",
@@ -149,6 +157,7 @@ def run(args: argparse.Namespace) -> int:
             lr=args.lr,
             model_config=_model_config(args.model_config),
             discriminator_config=_model_config(args.disc_config),
+            loss_weights=_model_config(args.loss_weight, "--loss-weight"),
             same_skeleton_recon=args.same_skeleton_recon,
             max_frames=args.max_frames,
             cache_dir=args.cache_dir,

@@ -5,8 +5,8 @@ The goal is ≤ 0.3 ms median per frame on one core for NKN and PMnet online. Th
 synthetic motion (smooth random rotations on the default canonical skeleton, a walking root)
 retargeted onto OP3-sized proportions, so no data set is needed; timing does not depend on the
 motion. A name that is a trainable architecture with no shipped checkpoint (``nkn``,
-``pmnet``) is timed with freshly initialised weights of the papers' sizes (the record's
-``weights`` says which).
+``pmnet``, ``residual``) is timed with freshly initialised weights of the default sizes (the
+record's ``weights`` says which).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ HELP = "Retargeting model time per frame, online and per clip (median, p99)."
 
 FloatArray = npt.NDArray[np.float64]
 
-_DEFAULT_MODELS = ("copy", "nkn", "pmnet")
+_DEFAULT_MODELS = ("copy", "nkn", "pmnet", "residual")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -16,10 +16,11 @@ run would have drawn.
 
 Validation (every ``val_every`` steps) retargets fixed windows of the validation subjects onto
 the other subjects' and the robots' skeletons and reports, on the heading-free local pose:
-``recon`` and ``cycle`` (mean squared joint error / height², × 10³), ``ee`` (hands and feet
-relative to the root, in limb lengths, against the source), ``yaw_rate`` (mean |turning-rate
-error| against the source, rad/s: heading drift) and ``score`` = ``ee`` + ``cycle`` / 100 +
-``yaw_rate``, which picks ``best.pt``.
+``recon`` and ``cycle`` (mean squared joint error / height², × 10³), ``ee``, ``contact`` and
+``bone_deg`` against the source (as the ``eval`` metrics, robot_retarget.nn.retarget_losses),
+``yaw_rate`` (mean |turning-rate error| against the source, rad/s: heading drift) and
+``score`` = ``ee`` + ``contact`` + bone direction (rad) + ``cycle`` / 100 + ``yaw_rate``, which
+picks ``best.pt``.
 """
 
 from __future__ import annotations
@@ -55,13 +56,21 @@ from robot_retarget.nn.features import compute_features, skeleton_height
 from robot_retarget.nn.losses import end_effector_weights, reconstruction_loss, squared_error
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.batch import RetargetBatch
-from robot_retarget.nn.models.registry import build_discriminator, build_model
-from robot_retarget.nn.models.training import LEARNING_RATE, make_optimizers, training_step
+from robot_retarget.nn.models.registry import (
+    build_discriminator,
+    build_model,
+    has_discriminator,
+)
+from robot_retarget.nn.models.training import (
+    LEARNING_RATE,
+    check_loss_weights,
+    make_optimizers,
+    training_step,
+)
+from robot_retarget.nn.retarget_losses import bone_direction_loss, contact_loss, effector_loss
 from robot_retarget.nn.train_log import TrainLog
-from robot_retarget.skeleton.canonical import Joint
 
-TRAINABLE_MODELS: tuple[str, ...] = ("nkn", "pmnet")
-_HANDS_FEET = [int(Joint.LeftHand), int(Joint.RightHand), int(Joint.LeftFoot), int(Joint.RightFoot)]
+TRAINABLE_MODELS: tuple[str, ...] = ("nkn", "pmnet", "residual")
 
 
 @dataclass(frozen=True)
@@ -87,6 +96,7 @@ class TrainConfig:
     model_config: dict[str, Any] = field(default_factory=dict)
     discriminator_config: dict[str, Any] = field(default_factory=dict)
     same_skeleton_recon: float = 0.0
+    loss_weights: dict[str, float] = field(default_factory=dict)
     max_frames: int | None = None
     cache_dir: str | None = None
 
@@ -158,18 +168,6 @@ def _to(batch: RetargetBatch, device: torch.device) -> RetargetBatch:
     )
 
 
-def _limb_scale(offsets: torch.Tensor) -> torch.Tensor:
-    """(B, 4) arm, arm, leg, leg lengths for hands and feet."""
-    n = torch.linalg.vector_norm(offsets, dim=-1)
-    arm = 0.5 * (n[:, Joint.LeftForeArm] + n[:, Joint.LeftHand]) + 0.5 * (
-        n[:, Joint.RightForeArm] + n[:, Joint.RightHand]
-    )
-    leg = 0.5 * (n[:, Joint.LeftLeg] + n[:, Joint.LeftFoot]) + 0.5 * (
-        n[:, Joint.RightLeg] + n[:, Joint.RightFoot]
-    )
-    return torch.stack([arm, arm, leg, leg], dim=-1)
-
-
 # Weight of the root-velocity term of same_skeleton_step, velocities in m/s and rad/s: a
 # yaw-rate error of 0.1 rad/s (a 6°/s heading drift) then costs 0.1, a third of a typical
 # pose reconstruction loss, so the integrated trajectory does not drift.
@@ -224,7 +222,7 @@ def validate(
 ) -> dict[str, float]:
     """Validation metrics on fixed batches (see the module docstring)."""
     model.eval()
-    sums = {"recon": 0.0, "cycle": 0.0, "ee": 0.0, "yaw_rate": 0.0}
+    sums = {"recon": 0.0, "cycle": 0.0, "ee": 0.0, "contact": 0.0, "bone_deg": 0.0, "yaw_rate": 0.0}
     for b in batches:
         src = compute_features(b.src_local_quats, b.src_root_pos, b.src_offsets)
         init = b.src_root_pos[:, 0]
@@ -235,17 +233,26 @@ def validate(
 
         sums["recon"] += _pose_error(same.features.local_pos, src.local_pos, h_src)
         sums["cycle"] += _pose_error(back.features.local_pos, src.local_pos, h_src)
-        ee_src = src.local_pos[:, :, _HANDS_FEET] / _limb_scale(b.src_offsets)[:, None, :, None]
-        ee_tgt = (
-            out_b.features.local_pos[:, :, _HANDS_FEET]
-            / (_limb_scale(b.tgt_offsets)[:, None, :, None])
+        pos_b = out_b.features.local_pos
+        sums["ee"] += float(
+            effector_loss(src.local_pos, b.src_offsets, pos_b, b.tgt_offsets).mean()
         )
-        sums["ee"] += float(torch.linalg.vector_norm(ee_tgt - ee_src, dim=-1).mean())
+        sums["contact"] += float(
+            contact_loss(src.local_pos, b.src_offsets, pos_b, b.tgt_offsets).mean()
+        )
+        bone = bone_direction_loss(src.local_pos, b.src_offsets, pos_b, b.tgt_offsets)
+        sums["bone_deg"] += math.degrees(float(bone.mean()))
         # Turning rate is size-independent: the target should turn as the source does.
         dyaw = out_b.features.root_vel[:, 1:, 3] - src.root_vel[:, 1:, 3]
         sums["yaw_rate"] += float(dyaw.abs().mean()) * fps
     out = {k: v / len(batches) for k, v in sums.items()}
-    out["score"] = out["ee"] + out["cycle"] / 100.0 + out["yaw_rate"]
+    out["score"] = (
+        out["ee"]
+        + out["contact"]
+        + math.radians(out["bone_deg"])
+        + out["cycle"] / 100.0
+        + out["yaw_rate"]
+    )
     return out
 
 
@@ -271,6 +278,10 @@ def train(
             f"model {config.model!r} cannot be trained; choose {', '.join(TRAINABLE_MODELS)} "
             "(copy and copy-scaled have no parameters)"
         )
+    try:
+        check_loss_weights(config.model, config.loss_weights)
+    except ValueError as exc:
+        raise TrainError(f"--loss-weight: {exc}") from exc
     out = Path(config.out_dir)
     cfg_path = out / "config.json"
     state_path = out / "trainer_state.pt"
@@ -331,7 +342,11 @@ def train(
 
     torch.manual_seed(config.seed)
     model = build_model(config.model, **config.model_config)
-    disc = build_discriminator(config.model, **config.discriminator_config)
+    disc = (
+        build_discriminator(config.model, **config.discriminator_config)
+        if has_discriminator(config.model)
+        else None
+    )
     start_step = 0
     best = math.inf
     if resume:
@@ -340,13 +355,15 @@ def train(
         feats, offsets = fit_features(sampler)
         model.fit_normalization(feats, offsets)
     model.to(device)
-    disc.to(device)
+    if disc is not None:
+        disc.to(device)
     optimizers = make_optimizers(model, disc, lr=config.lr)
     if resume:
         state = torch.load(state_path, map_location=device, weights_only=True)
-        disc.load_state_dict(state["discriminator"])
         optimizers.generator.load_state_dict(state["generator_optimizer"])
-        optimizers.discriminator.load_state_dict(state["discriminator_optimizer"])
+        if disc is not None and optimizers.discriminator is not None:
+            disc.load_state_dict(state["discriminator"])
+            optimizers.discriminator.load_state_dict(state["discriminator_optimizer"])
         start_step = int(state["step"])
         best = float(state["best_score"])
 
@@ -369,14 +386,15 @@ def train(
         )
 
     def save_state(step: int) -> None:
+        d_opt = optimizers.discriminator
         tmp = state_path.with_name(state_path.name + ".tmp")
         torch.save(
             {
                 "step": step,
                 "best_score": best,
-                "discriminator": disc.state_dict(),
+                "discriminator": {} if disc is None else disc.state_dict(),
                 "generator_optimizer": optimizers.generator.state_dict(),
-                "discriminator_optimizer": optimizers.discriminator.state_dict(),
+                "discriminator_optimizer": {} if d_opt is None else d_opt.state_dict(),
             },
             tmp,
         )
@@ -398,7 +416,10 @@ def train(
                 extra["same_recon"] = same_skeleton_step(
                     model, batch, optimizers.generator, config.same_skeleton_recon, config.fps
                 )
-            losses = {**training_step(model, disc, batch, optimizers), **extra}
+            losses = {
+                **training_step(model, disc, batch, optimizers, config.fps, config.loss_weights),
+                **extra,
+            }
             for k, v in losses.items():
                 running[k] = running.get(k, 0.0) + v
             count += 1

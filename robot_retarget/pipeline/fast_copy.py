@@ -121,11 +121,17 @@ def online_retargeter(
     source_offsets: npt.ArrayLike,
     target_offsets: npt.ArrayLike,
 ) -> OnlineStep:
-    """The live network step for ``model``: the numpy twin for the copy baselines, else
-    :class:`OnlineRetargeter` (torch)."""
+    """The live network step for ``model``: the numpy twins for the copy baselines and the
+    residual model (robot_retarget.pipeline.fast_residual), else :class:`OnlineRetargeter`
+    (torch)."""
+    from robot_retarget.nn.models.residual import ResidualRetargeter
+    from robot_retarget.pipeline.fast_residual import FastResidualRetargeter
+
+    net = model.model if isinstance(model, LoadedModel) else model
+    if type(net) is ResidualRetargeter:
+        return FastResidualRetargeter(net, source_offsets, target_offsets)
     if not is_copy_baseline(model):
         return OnlineRetargeter(model, source_offsets, target_offsets)
-    net = model.model if isinstance(model, LoadedModel) else model
     scale = 1.0
     if type(net) is CopyScaledModel:
         src = np.asarray(source_offsets, dtype=np.float64)

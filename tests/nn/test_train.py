@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -25,8 +26,13 @@ from robot_retarget.nn.train import (
 TINY_MODEL = {
     "nkn": {"hidden_size": 16, "num_layers": 1},
     "pmnet": {"hidden_size": 16, "num_layers": 2, "movement_channels": 8},
+    "residual": {"hidden_size": 16, "num_layers": 2, "denoiser_hidden": 8},
 }
-TINY_DISC = {"nkn": {"channels": [4, 4, 4, 4]}, "pmnet": {"channels": [4, 4, 4, 4]}}
+TINY_DISC = {
+    "nkn": {"channels": [4, 4, 4, 4]},
+    "pmnet": {"channels": [4, 4, 4, 4]},
+    "residual": {},
+}
 
 
 def _config(
@@ -100,6 +106,38 @@ def test_nkn_trains_with_real_target_motion(
     assert load_checkpoint(result.best_path).model.name == "nkn"
 
 
+def test_residual_trains_without_a_discriminator_and_resumes_exactly(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    straight = train(_config(mocap_dir, tmp_path / "a", cache_dir, model="residual", steps=4))
+    assert load_checkpoint(straight.best_path).model.name == "residual"
+    rows = list(csv.DictReader((tmp_path / "a" / "log.csv").open()))
+    assert {"effector", "denoise", "consistency"} <= {r["metric"] for r in rows}
+    cfg = _config(mocap_dir, tmp_path / "b", cache_dir, model="residual", steps=2)
+    train(cfg)
+    resumed = train(dataclasses.replace(cfg, steps=4), resume=True)
+    a = load_checkpoint(straight.last_path).model.state_dict()
+    b = load_checkpoint(resumed.last_path).model.state_dict()
+    for key in a:
+        torch.testing.assert_close(a[key], b[key], rtol=0, atol=1e-6, msg=key)
+
+
+def test_loss_weight_overrides_change_training_and_unknown_ones_are_refused(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    cfg = _config(mocap_dir, tmp_path / "a", cache_dir, model="residual", steps=2)
+    plain = train(cfg)
+    heavy = train(
+        dataclasses.replace(cfg, out_dir=str(tmp_path / "b"), loss_weights={"bone": 50.0})
+    )
+    a = load_checkpoint(plain.last_path).model.state_dict()
+    b = load_checkpoint(heavy.last_path).model.state_dict()
+    assert any(not torch.equal(a[k], b[k]) for k in a)
+    with pytest.raises(TrainError, match=r"unknown loss weight.*'bogus'.*allowed: effector"):
+        train(dataclasses.replace(cfg, out_dir=str(tmp_path / "c"), loss_weights={"bogus": 1.0}))
+    assert not (tmp_path / "c").exists()
+
+
 def test_refuses_to_overwrite_untrainable_models_and_bad_resume(
     mocap_dir: Path, tmp_path: Path, cache_dir: Path
 ) -> None:
@@ -121,7 +159,9 @@ def test_validation_of_copy_is_exact_on_same_skeleton(mocap_dir: Path, cache_dir
     metrics = validate(build_model("copy"), [batch])
     assert metrics["recon"] == pytest.approx(0.0, abs=1e-9)
     assert metrics["cycle"] == pytest.approx(0.0, abs=1e-9)
-    assert metrics["score"] == pytest.approx(metrics["ee"])
+    # Copy keeps the heading: the score is the effector, contact and bone-direction error.
+    expected = metrics["ee"] + metrics["contact"] + math.radians(metrics["bone_deg"])
+    assert metrics["score"] == pytest.approx(expected)
 
 
 def test_same_skeleton_reconstruction_option(

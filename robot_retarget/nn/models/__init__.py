@@ -1,4 +1,4 @@
-"""Retargeting models behind one interface: copy baselines, NKN and PMnet.
+"""Retargeting models behind one interface: copy baselines, NKN, PMnet and our residual model.
 
 Import the registry for names → models (``from robot_retarget.nn.models.registry import
 build_model``); this file imports nothing, so one broken model never breaks the others.
@@ -21,4 +21,11 @@ Where we deviate from (or fill gaps in) the papers, and why:
   (Shoulder…Hand, UpLeg…ToeBase, Neck…Head), trunk weight 1; F_M's convolutions are causal
   (``causal_movement=True``) so the online path has no look-ahead; the mean-point trajectory is
   taken relative to the window's first root position and heading.
+- Residual (ours, robot_retarget.nn.models.residual): PMnet's q_B = q_A ⊗ Δq with q_A the
+  source's measured rotations (denoised by a learned causal filter) instead of a regression
+  from positions, root motion as copy-scaled's through a unit-gain causal filter, trained on
+  differentiable versions of the eval metrics (robot_retarget.nn.retarget_losses) and on
+  corrupted input. It exists because the papers' models, trained here, lost to copying the
+  rotations on every pose metric (PMnet: bone direction 19° vs 5.7°); it starts as copy-scaled
+  and learns only corrections.
 """

@@ -18,9 +18,10 @@ from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.copy import CopyModel, CopyScaledModel
 from robot_retarget.nn.models.nkn import NKN
 from robot_retarget.nn.models.pmnet import PMnet
+from robot_retarget.nn.models.residual import ResidualRetargeter
 
 MODELS: dict[str, type[RetargetModel]] = {
-    cls.name: cls for cls in (CopyModel, CopyScaledModel, NKN, PMnet)
+    cls.name: cls for cls in (CopyModel, CopyScaledModel, NKN, PMnet, ResidualRetargeter)
 }
 
 DISCRIMINATORS: dict[str, type[nn.Module]] = {
@@ -65,7 +66,12 @@ def build_model(name: str, **config: Any) -> RetargetModel:
         ) from exc
 
 
+def has_discriminator(model_name: str) -> bool:
+    """Whether ``model_name`` is trained against a discriminator (NKN, PMnet)."""
+    return model_name in DISCRIMINATORS
+
+
 def build_discriminator(model_name: str, **config: Any) -> nn.Module:
     """The discriminator a model is trained against (raises for models without one)."""
-    cls: type[nn.Module] = _lookup(model_name, DISCRIMINATORS, "trainable model")
+    cls: type[nn.Module] = _lookup(model_name, DISCRIMINATORS, "model with a discriminator")
     return cls(**config)

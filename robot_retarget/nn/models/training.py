@@ -11,17 +11,34 @@ mean probability of "real" on retargeted motion is below 0.3 (appendix E).
 
 PMnet (eq. 12): reconstruction (end-effector chains ×2) + λ_p perceptual pose (5) + λ_m
 motion discrimination (2) + λ_r rotation constraint (10, α = 100°).
+
+Residual (ours, robot_retarget.nn.models.residual): no discriminator. The clean source goes
+through the model for the geometric losses of robot_retarget.nn.retarget_losses (effectors,
+contacts, bone directions, foot skate), a root-velocity loss against copy-scaled's and PMnet's
+rotation constraint (λ_r = 10, α = 100°); a copy corrupted as in the denoising test goes through
+it for a supervised denoising loss (denoised source pose against the clean one) and a
+consistency loss (its output against the clean input's, the denoising metric). Adam, gradients
+clipped to norm 25.
 """
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TypeVar
 
 import torch
 from torch import nn
 
+from robot_retarget.nn.corruption import CorruptionRanges, corrupt_batch
 from robot_retarget.nn.discriminators import NKNDiscriminator, PMnetDiscriminator
-from robot_retarget.nn.features import MotionFeatures, compute_features, local_positions
+from robot_retarget.nn.features import (
+    MotionFeatures,
+    compute_features,
+    local_positions,
+    skeleton_height,
+)
 from robot_retarget.nn.features import pmnet_scale as scale_of
 from robot_retarget.nn.losses import (
     TWIST_ALPHA_RAD,
@@ -39,10 +56,21 @@ from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.nkn import NKN
 from robot_retarget.nn.models.pmnet import PMnet
+from robot_retarget.nn.models.residual import ResidualRetargeter
+from robot_retarget.nn.retarget_losses import (
+    bone_direction_loss,
+    contact_loss,
+    denoising_loss,
+    effector_loss,
+    foot_contacts,
+    foot_skate_loss,
+    global_positions,
+)
 
 Tensor = torch.Tensor
 
 LEARNING_RATE = 1e-4
+DEFAULT_FPS = 30.0
 
 
 @dataclass(frozen=True)
@@ -50,16 +78,19 @@ class Optimizers:
     """The generator's (retargeting model's) and the discriminator's optimisers."""
 
     generator: torch.optim.Optimizer
-    discriminator: torch.optim.Optimizer
+    discriminator: torch.optim.Optimizer | None
 
 
 def make_optimizers(
-    model: nn.Module, discriminator: nn.Module, lr: float = LEARNING_RATE
+    model: nn.Module, discriminator: nn.Module | None, lr: float = LEARNING_RATE
 ) -> Optimizers:
-    """Adam for both networks (both papers: learning rate 1e-4)."""
+    """Adam for both networks (both papers: learning rate 1e-4); a model trained without a
+    discriminator gets none."""
     return Optimizers(
         generator=torch.optim.Adam(model.parameters(), lr=lr),
-        discriminator=torch.optim.Adam(discriminator.parameters(), lr=lr),
+        discriminator=(
+            None if discriminator is None else torch.optim.Adam(discriminator.parameters(), lr=lr)
+        ),
     )
 
 
@@ -93,6 +124,12 @@ def _detached(f: MotionFeatures) -> MotionFeatures:
         local_quats=f.local_quats.detach(),
         yaw=f.yaw.detach(),
     )
+
+
+def _discriminator_optimizer(optimizers: Optimizers) -> torch.optim.Optimizer:
+    if optimizers.discriminator is None:
+        raise ValueError("this model trains against a discriminator: build its optimiser too")
+    return optimizers.discriminator
 
 
 def _discriminator_update(
@@ -157,7 +194,7 @@ def nkn_training_step(
         real = compute_features(batch.real_local_quats, batch.real_root_pos, batch.tgt_offsets)
         d_loss, fake_prob = _discriminator_update(
             disc,
-            optimizers.discriminator,
+            _discriminator_optimizer(optimizers),
             NKNDiscriminator.inputs(real, batch.tgt_offsets),
             NKNDiscriminator.inputs(_detached(out_b.features), batch.tgt_offsets),
             other,
@@ -165,7 +202,7 @@ def nkn_training_step(
         # Balancing (appendix E): let the generator catch up while the discriminator wins.
         updated = fake_prob >= w.disc_min_fake_prob
         if updated:
-            optimizers.discriminator.step()
+            _discriminator_optimizer(optimizers).step()
         losses.update(discriminator=d_loss, disc_fake_prob=fake_prob, disc_updated=float(updated))
     return losses
 
@@ -207,10 +244,9 @@ def pmnet_training_step(
 
     real_traj = mean_point_trajectory(src.local_pos, src.root_vel, scale_of(batch.src_offsets))
     everyone = torch.ones_like(batch.same_skeleton, dtype=torch.bool)
-    d_loss, fake_prob = _discriminator_update(
-        disc, optimizers.discriminator, real_traj, fake_traj.detach(), everyone
-    )
-    optimizers.discriminator.step()
+    d_opt = _discriminator_optimizer(optimizers)
+    d_loss, fake_prob = _discriminator_update(disc, d_opt, real_traj, fake_traj.detach(), everyone)
+    d_opt.step()
     return {
         "total": float(total.detach()),
         "reconstruction": float(recon.detach().mean()),
@@ -222,21 +258,155 @@ def pmnet_training_step(
     }
 
 
-def training_step(
-    model: RetargetModel,
-    disc: nn.Module,
+@dataclass(frozen=True)
+class ResidualLossWeights:
+    """Weights of the residual model's losses (ours; see the module docstring).
+
+    The geometric terms are in the metrics' units (limb lengths, radians, leg lengths per
+    second); ``denoise``, ``consistency`` and ``root`` are height-normalised squared errors
+    × 10³, the denoising metric's unit.
+    """
+
+    effector: float = 1.0
+    contact: float = 1.0
+    bone: float = 3.0
+    skate: float = 0.1
+    denoise: float = 3.0
+    # The output-level consistency term pulls the pose correction towards ignoring its input:
+    # at 0.5 (1000 steps) it cost 0.025 limb lengths of effector error and 1.8° of bone
+    # direction to bring the denoising error from 1.52 to 0.89 (copy-scaled: 3.46), so it is
+    # off by default.
+    consistency: float = 0.0
+    root: float = 1.0
+    lambda_rot: float = 10.0
+    twist_alpha_rad: float = TWIST_ALPHA_RAD
+    grad_clip_norm: float = 25.0
+
+
+def residual_training_step(
+    model: ResidualRetargeter,
     batch: RetargetBatch,
     optimizers: Optimizers,
+    weights: ResidualLossWeights | None = None,
+    corruption: CorruptionRanges | None = None,
+    fps: float = DEFAULT_FPS,
 ) -> dict[str, float]:
-    """One step of whichever trainable model this is, with the paper's weights."""
+    """One step of the residual model: the clean source through the model for the geometric
+    losses, a corrupted copy for the denoising losses (see the module docstring)."""
+    w = weights or ResidualLossWeights()
+    model.train()
+    src_off, tgt_off = batch.src_offsets, batch.tgt_offsets
+    init = batch.src_root_pos[:, 0]
+    h_src = skeleton_height(src_off)
+    h_tgt = skeleton_height(tgt_off)
+    clean = compute_features(batch.src_local_quats, batch.src_root_pos, src_off)
+    out = model.retarget_features(clean, init, src_off, tgt_off)
+    pos_b = out.features.local_pos
+
+    effector = effector_loss(clean.local_pos, src_off, pos_b, tgt_off)
+    contact = contact_loss(clean.local_pos, src_off, pos_b, tgt_off)
+    bone = bone_direction_loss(clean.local_pos, src_off, pos_b, tgt_off)
+    planted = foot_contacts(
+        global_positions(clean.local_pos, batch.src_root_pos, clean.yaw), fps, src_off
+    )
+    world_b = global_positions(pos_b, out.root_pos, out.features.yaw)
+    skate = foot_skate_loss(world_b, planted, fps, tgt_off)
+    rot = w.lambda_rot * twist_loss(out.features.local_quats, tgt_off, w.twist_alpha_rad)
+    # The root should move as copy-scaled's: F_v may smooth, not lag or drift.
+    scaled = clean.root_vel[..., :3] / h_src[:, None, None]
+    vel_err = (out.features.root_vel[..., :3] / h_tgt[:, None, None] - scaled) ** 2
+    root = vel_err.sum(-1).mean(-1) * 1e3
+
+    noisy_q, noisy_root = corrupt_batch(
+        batch.src_local_quats, batch.src_root_pos, h_src, corruption or CorruptionRanges()
+    )
+    noisy = compute_features(noisy_q, noisy_root, src_off)
+    out_noisy = model.retarget_features(noisy, noisy_root[:, 0], src_off, tgt_off)
+    denoise = denoising_loss(out_noisy.extras["pos_denoised"], clean.local_pos, src_off)
+    consistency = torch.zeros_like(denoise)
+    if w.consistency > 0.0:
+        # The denoising metric itself: the output for noisy input against the clean input's.
+        world_noisy = global_positions(
+            out_noisy.features.local_pos, out_noisy.root_pos, out_noisy.features.yaw
+        )
+        consistency = denoising_loss(world_noisy, world_b.detach(), tgt_off)
+    total = (
+        w.effector * effector
+        + w.contact * contact
+        + w.bone * bone
+        + w.skate * skate
+        + w.denoise * denoise
+        + w.consistency * consistency
+        + w.root * root
+        + rot
+    ).mean()
+    optimizers.generator.zero_grad(set_to_none=True)
+    total.backward()  # type: ignore[no-untyped-call]
+    nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
+    optimizers.generator.step()
+    return {
+        "total": float(total.detach()),
+        "effector": float(effector.detach().mean()),
+        "contact": float(contact.detach().mean()),
+        "bone": float(bone.detach().mean()),
+        "skate": float(skate.detach().mean()),
+        "denoise": float(denoise.detach().mean()),
+        "consistency": float(consistency.detach().mean()),
+        "root": float(root.detach().mean()),
+        "rotation": float(rot.detach().mean()),
+    }
+
+
+_W = TypeVar("_W", NKNLossWeights, PMnetLossWeights, ResidualLossWeights)
+
+
+def loss_weights(defaults: _W, overrides: Mapping[str, float] | None) -> _W:
+    """``defaults`` with ``overrides`` applied; raises ValueError naming an unknown key."""
+    if not overrides:
+        return defaults
+    allowed = [f.name for f in dataclasses.fields(defaults)]
+    unknown = sorted(set(overrides) - set(allowed))
+    if unknown:
+        raise ValueError(
+            f"unknown loss weight(s) {unknown} for {type(defaults).__name__}; "
+            f"allowed: {', '.join(allowed)}"
+        )
+    return dataclasses.replace(defaults, **overrides)
+
+
+def check_loss_weights(model_name: str, overrides: Mapping[str, float] | None) -> None:
+    """Raise ValueError now (before any data loads) if ``overrides`` names an unknown weight."""
+    if model_name == "nkn":
+        loss_weights(NKNLossWeights(), overrides)
+    elif model_name == "pmnet":
+        loss_weights(PMnetLossWeights(), overrides)
+    else:
+        loss_weights(ResidualLossWeights(), overrides)
+
+
+def training_step(
+    model: RetargetModel,
+    disc: nn.Module | None,
+    batch: RetargetBatch,
+    optimizers: Optimizers,
+    fps: float = DEFAULT_FPS,
+    weights: Mapping[str, float] | None = None,
+) -> dict[str, float]:
+    """One step of whichever trainable model this is: its default loss weights (the papers'
+    for NKN and PMnet) with ``weights`` overriding some of them."""
+    if isinstance(model, ResidualRetargeter) and disc is None:
+        w_res = loss_weights(ResidualLossWeights(), weights)
+        return residual_training_step(model, batch, optimizers, w_res, fps=fps)
     if isinstance(model, NKN) and isinstance(disc, NKNDiscriminator):
-        return nkn_training_step(model, disc, batch, optimizers)
+        w_nkn = loss_weights(NKNLossWeights(), weights)
+        return nkn_training_step(model, disc, batch, optimizers, w_nkn)
     if isinstance(model, PMnet) and isinstance(disc, PMnetDiscriminator):
-        return pmnet_training_step(model, disc, batch, optimizers)
+        w_pm = loss_weights(PMnetLossWeights(), weights)
+        return pmnet_training_step(model, disc, batch, optimizers, w_pm)
     raise ValueError(
         f"no training step for model {type(model).__name__} with discriminator "
         f"{type(disc).__name__}; trainable pairs: NKN + NKNDiscriminator, PMnet + "
-        "PMnetDiscriminator (copy baselines have nothing to train)"
+        "PMnetDiscriminator, residual without one (copy baselines have nothing to train)"
     )
 
 

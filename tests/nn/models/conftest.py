@@ -21,6 +21,13 @@ TINY_CONFIGS: dict[str, dict[str, object]] = {
     "copy-scaled": {},
     "nkn": {"hidden_size": 24, "num_layers": 2},
     "pmnet": {"hidden_size": 24, "num_layers": 2, "movement_channels": 8},
+    "residual": {
+        "hidden_size": 24,
+        "num_layers": 2,
+        "denoiser_history": 3,
+        "denoiser_hidden": 8,
+        "root_filter_taps": 3,
+    },
 }
 TINY_DISCRIMINATORS: dict[str, dict[str, object]] = {
     "nkn": {"channels": (8, 8, 8, 8)},
@@ -81,11 +88,22 @@ def skeleton_pair(human: Skeleton) -> tuple[torch.Tensor, torch.Tensor]:
     return src, tgt
 
 
+def randomize_zero_layers(model: RetargetModel, scale: float = 0.1) -> RetargetModel:
+    """Give parameters that start at exactly zero (the residual model's last layers and root
+    filter, which make an untrained model equal copy-scaled) random values, so tests exercise
+    the learned paths."""
+    with torch.no_grad():
+        for param in model.parameters():
+            if not param.any():
+                param.normal_(0.0, scale)
+    return model
+
+
 @pytest.fixture
 def tiny_model() -> Callable[[str], RetargetModel]:
     def build(name: str) -> RetargetModel:
         torch.manual_seed(0)
-        return build_model(name, **TINY_CONFIGS[name])
+        return randomize_zero_layers(build_model(name, **TINY_CONFIGS[name]))
 
     return build
 

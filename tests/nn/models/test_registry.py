@@ -8,11 +8,16 @@ from robot_retarget.errors import ModelLoadError
 from robot_retarget.nn.discriminators import NKNDiscriminator, PMnetDiscriminator
 from robot_retarget.nn.models.nkn import NKN
 from robot_retarget.nn.models.pmnet import PMnet
-from robot_retarget.nn.models.registry import build_discriminator, build_model, model_names
+from robot_retarget.nn.models.registry import (
+    build_discriminator,
+    build_model,
+    has_discriminator,
+    model_names,
+)
 
 
 def test_names() -> None:
-    assert model_names() == ("copy", "copy-scaled", "nkn", "pmnet")
+    assert model_names() == ("copy", "copy-scaled", "nkn", "pmnet", "residual")
     for name in model_names():
         assert build_model(name).name == name
 
@@ -28,11 +33,16 @@ def test_overrides_and_defaults() -> None:
 
 
 def test_unknown_name_lists_choices() -> None:
-    with pytest.raises(ModelLoadError, match="copy, copy-scaled, nkn, pmnet") as info:
+    with pytest.raises(ModelLoadError, match="copy, copy-scaled, nkn, pmnet, residual") as info:
         build_model("tdcn")
     assert info.value.model == "tdcn"
-    with pytest.raises(ModelLoadError, match="trainable model 'copy'"):
+    with pytest.raises(ModelLoadError, match="model with a discriminator 'copy'"):
         build_discriminator("copy")
+    with pytest.raises(ModelLoadError, match="model with a discriminator 'residual'"):
+        build_discriminator("residual")
+    assert has_discriminator("nkn")
+    assert has_discriminator("pmnet")
+    assert not has_discriminator("residual")
 
 
 def test_bad_config_key() -> None:

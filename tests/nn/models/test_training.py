@@ -22,19 +22,39 @@ BuildDisc = Callable[[str], torch.nn.Module]
 EXPECTED_KEYS = {
     "nkn": {"total", "cycle", "square", "adversarial", "twist", "smoothing", "discriminator"},
     "pmnet": {"total", "reconstruction", "pose", "motion", "rotation", "discriminator"},
+    "residual": {
+        "total",
+        "effector",
+        "contact",
+        "bone",
+        "skate",
+        "denoise",
+        "consistency",
+        "root",
+        "rotation",
+    },
 }
-# The term each model learns first: NKN's cycle consistency, PMnet's pose reconstruction.
-MAIN_TERM = {"nkn": "cycle", "pmnet": "reconstruction"}
+# The term each model learns first: NKN's cycle consistency, PMnet's pose reconstruction, the
+# residual model's supervised denoising.
+MAIN_TERM = {"nkn": "cycle", "pmnet": "reconstruction", "residual": "denoise"}
 
 
-@pytest.mark.parametrize("name", ["nkn", "pmnet"])
+def _disc(name: str, build: BuildDisc) -> torch.nn.Module | None:
+    return None if name == "residual" else build(name)
+
+
+@pytest.mark.parametrize("name", ["nkn", "pmnet", "residual"])
 def test_a_few_steps_reduce_the_loss(
     name: str, tiny_model: Build, tiny_discriminator: BuildDisc, batch: RetargetBatch
 ) -> None:
     model = tiny_model(name)
-    disc = tiny_discriminator(name)
+    disc = _disc(name, tiny_discriminator)
     opt = make_optimizers(model, disc, lr=3e-3)
-    history = [training_step(model, disc, batch, opt) for _ in range(12)]
+    # A fixed seed per step: the residual model's input corruption is the same every step.
+    history = []
+    for _ in range(12):
+        torch.manual_seed(11)
+        history.append(training_step(model, disc, batch, opt))
     assert EXPECTED_KEYS[name] <= set(history[0])
     assert all(torch.isfinite(torch.tensor(list(h.values()))).all() for h in history)
     main = MAIN_TERM[name]
@@ -42,14 +62,14 @@ def test_a_few_steps_reduce_the_loss(
     assert history[-1]["total"] < history[0]["total"]
 
 
-@pytest.mark.parametrize("name", ["nkn", "pmnet"])
+@pytest.mark.parametrize("name", ["nkn", "pmnet", "residual"])
 def test_steps_are_deterministic(
     name: str, tiny_model: Build, tiny_discriminator: BuildDisc, batch: RetargetBatch
 ) -> None:
     runs = []
     for _ in range(2):
         model = tiny_model(name)
-        disc = tiny_discriminator(name)
+        disc = _disc(name, tiny_discriminator)
         opt = make_optimizers(model, disc)
         torch.manual_seed(5)
         runs.append([training_step(model, disc, batch, opt) for _ in range(2)])

@@ -1,0 +1,253 @@
+"""numpy twin of the residual model's online step (no torch on the live path).
+
+:class:`robot_retarget.nn.models.residual.ResidualRetargeter` through torch costs ~0.5 ms per
+frame, nearly all of it per-op dispatch on tensors of a few hundred numbers. The live loop has a
+fraction of a millisecond for the whole chain, so :class:`FastResidualRetargeter` copies the
+trained weights into float64 arrays once and runs the same arithmetic in numpy, step for step
+as ``RetargetModel.step``: heading removal and root velocity as ``FeatureStream``, the causal
+denoiser, forward kinematics by pointer jumping (as ``FrameKinematics``), the pose correction
+with its per-skeleton bias folded in, the root filter and the integration. Its output equals
+:class:`robot_retarget.nn.inference.OnlineRetargeter`'s to float32 rounding (tested).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+import torch
+
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.nn.models.residual import ResidualRetargeter
+from robot_retarget.pipeline.fast_copy import rest_height_m
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
+
+FloatArray = npt.NDArray[np.float64]
+
+_J = len(CANONICAL_JOINTS)
+_TWO_PI = 2.0 * math.pi
+_REL_SCALE = 10.0  # as robot_retarget.nn.models.residual
+
+
+def _np(t: torch.Tensor) -> FloatArray:
+    return np.asarray(t.detach().cpu().double().numpy(), dtype=np.float64)
+
+
+def _linear_layers(seq: torch.nn.Module) -> list[tuple[FloatArray, FloatArray]]:
+    return [(_np(m.weight), _np(m.bias)) for m in seq.modules() if isinstance(m, torch.nn.Linear)]
+
+
+def _hamilton_table() -> FloatArray:
+    """(16, 4) H with a ⊗ b = (a bᵀ).flatten() @ H, as robot_retarget.nn.models.pmnet."""
+    table = np.zeros((4, 4, 4))
+    for out, terms in enumerate(
+        (
+            ((0, 0, 1), (1, 1, -1), (2, 2, -1), (3, 3, -1)),
+            ((0, 1, 1), (1, 0, 1), (2, 3, 1), (3, 2, -1)),
+            ((0, 2, 1), (1, 3, -1), (2, 0, 1), (3, 1, 1)),
+            ((0, 3, 1), (1, 2, 1), (2, 1, -1), (3, 0, 1)),
+        )
+    ):
+        for i, k, sign in terms:
+            table[i, k, out] = sign
+    return table.reshape(16, 4)
+
+
+_HAMILTON = _hamilton_table()
+
+
+def _mul(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Hamilton product of broadcastable quaternion arrays (…, 4): one outer product, one
+    matmul (per-call overhead is what costs at this size)."""
+    a, b = np.broadcast_arrays(a, b)
+    outer = (a[..., :, None] * b[..., None, :]).reshape(*a.shape[:-1], 16)
+    return np.asarray(outer @ _HAMILTON, dtype=np.float64)
+
+
+def _matrices(q: FloatArray) -> FloatArray:
+    """Rotation matrices (J, 3, 3) of unit quaternions (J, 4) (the quadratic form)."""
+    w, x, y, z = q.T
+    return np.stack(
+        [
+            np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1),
+        ],
+        axis=-2,
+    )
+
+
+class _TreeKinematics:
+    """Root-relative joint positions of one frame by pointer jumping (FrameKinematics' scheme)."""
+
+    def __init__(self, parents: tuple[int, ...]) -> None:
+        j = len(parents)
+        parent = [j if p < 0 else p for p in parents] + [j]
+        depth = [0] * j
+        for i in range(1, j):
+            depth[i] = depth[parents[i]] + 1
+        jumps = [parent]
+        while 2 ** len(jumps) < max(depth) + 1:
+            prev = jumps[-1]
+            jumps.append([prev[prev[i]] for i in range(j + 1)])
+        self._jumps = [np.array(a) for a in jumps]
+        self._parent = np.array(parent[:j])
+        chain = np.zeros((j, j))
+        for n in range(j):
+            k = n
+            while k > 0:
+                chain[n, k] = 1.0
+                k = parents[k]
+        self._chain = chain
+
+    def positions(self, rot: FloatArray, offsets: FloatArray) -> FloatArray:
+        """Positions (J, 3) from local rotation matrices (J, 3, 3) and rest offsets (J, 3)."""
+        glob = np.concatenate([rot, np.eye(3)[None]], axis=0)
+        for anc in self._jumps:
+            glob = glob[anc] @ glob
+        bones = np.einsum("jab,jb->ja", glob[self._parent], offsets)
+        return np.asarray(self._chain @ bones, dtype=np.float64)
+
+
+class FastResidualRetargeter:
+    """Online residual model on numpy: ``step`` (22, 4), (3,) → (22, 4), (3,)."""
+
+    def __init__(
+        self,
+        model: ResidualRetargeter,
+        source_offsets: npt.ArrayLike,
+        target_offsets: npt.ArrayLike,
+    ) -> None:
+        src = np.asarray(source_offsets, dtype=np.float64)
+        tgt = np.asarray(target_offsets, dtype=np.float64)
+        for name, a in (("source_offsets", src), ("target_offsets", tgt)):
+            if a.shape != (_J, 3):
+                raise ValueError(f"{name} must have shape {(_J, 3)}, got {a.shape}")
+        self._src = src
+        self._kin = _TreeKinematics(CANONICAL_PARENTS)
+        h_src, h_tgt = rest_height_m(src), rest_height_m(tgt)
+        self._h_src = h_src
+        self._ratio = h_tgt / h_src
+        with torch.no_grad():
+            self._den_layers = _linear_layers(model.denoiser.net)
+            self._history = model.denoiser.history
+            self._code = np.eye(_J)
+            pose_mean, pose_std = _np(model.pose_norm.mean), _np(model.pose_norm.std)
+            rot_mean, rot_std = _np(model.rot_norm.mean), _np(model.rot_norm.std)
+            off_mean, off_std = _np(model.offset_norm.mean), _np(model.offset_norm.std)
+            layers = _linear_layers(model.correction)
+            w0, b0 = layers[0]
+            pose_dim = 9 * _J
+            ref_a = (src.reshape(-1) / h_src - off_mean) / off_std
+            ref_b = (tgt.reshape(-1) / h_tgt - off_mean) / off_std
+            k = 3 * _J
+            # The skeletons' share of the first layer is fixed for this pair: fold it in.
+            self._first_bias = (
+                b0 + w0[:, pose_dim : pose_dim + k] @ ref_a + w0[:, pose_dim + k :] @ ref_b
+            )
+            self._in_mean = np.concatenate([pose_mean, rot_mean])
+            self._in_std = np.concatenate([pose_std, rot_std])
+            self._first_weight = w0[:, :pose_dim]
+            self._hidden = layers[1:]
+            self._to_delta = (_np(model.to_delta.weight), _np(model.to_delta.bias))
+            self._root_taps = _np(model.root_filter.weights())
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a new sequence: the next :meth:`step` is frame 0."""
+        self._past: FloatArray | None = None
+        self._vel_past = np.zeros((len(self._root_taps) - 1, 3))
+        self._prev: tuple[float, float, float, float] | None = None  # x, y, z, yaw
+        self._out: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+
+    def _denoise(self, q: FloatArray) -> FloatArray:
+        if self._past is None:
+            self._past = np.repeat(q[:, None], self._history, axis=1)
+        conj = q * np.array([1.0, -1.0, -1.0, -1.0])
+        rel = quat.to_rotation_vector(_mul(conj[:, None], self._past))  # (J, K, 3)
+        own = np.linalg.norm(quat.to_rotation_vector(q), axis=-1)
+        x = np.concatenate(
+            [
+                rel.reshape(_J, -1) * _REL_SCALE,
+                np.linalg.norm(rel, axis=-1) * _REL_SCALE,
+                own[:, None],
+                self._code,
+            ],
+            axis=-1,
+        )
+        for i, (w, b) in enumerate(self._den_layers):
+            x = x @ w.T + b
+            if i < len(self._den_layers) - 1:
+                x = np.maximum(x, 0.0)
+        correction = np.einsum("jk,jkc->jc", x, rel)
+        out = _mul(q, quat.from_rotation_vector(correction))
+        out[0] = q[0]
+        self._past = np.concatenate([q[:, None], self._past[:, :-1]], axis=1)
+        return out
+
+    def _delta(self, q: FloatArray) -> FloatArray:
+        rot = _matrices(q)
+        pos = self._kin.positions(rot, self._src)
+        six = np.concatenate([rot[:, :, 0], rot[:, :, 1]], axis=-1)
+        x = (np.concatenate([pos.reshape(-1) / self._h_src, six.reshape(-1)]) - self._in_mean) / (
+            self._in_std
+        )
+        x = np.maximum(self._first_weight @ x + self._first_bias, 0.0)
+        for w, b in self._hidden:
+            x = np.maximum(w @ x + b, 0.0)
+        w, b = self._to_delta
+        delta = (w @ x + b).reshape(_J, 4) + np.array([1.0, 0.0, 0.0, 0.0])
+        return delta / np.maximum(np.linalg.norm(delta, axis=-1, keepdims=True), 1e-12)
+
+    def step(
+        self, local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
+    ) -> tuple[FloatArray, FloatArray]:
+        """One frame: (22, 4), (3,) → target rotations (22, 4) and root position (3,)."""
+        q = np.array(local_quats, dtype=np.float64)
+        root = np.asarray(root_pos, dtype=np.float64)
+        if q.shape != (_J, 4):
+            raise ValueError(f"local_quats must have shape {(_J, 4)}, got {q.shape}")
+        if root.shape != (3,):
+            raise ValueError(f"root_pos must have shape (3,), got {root.shape}")
+        w, x, y, z = q[0].tolist()
+        px, py, pz = root.tolist()
+        yaw = math.atan2(-2.0 * (x * z - w * y), w * w + x * x - y * y - z * z)
+        # Heading-free root rotation (yaw_mul(−yaw)), as FrameFeatures.local_quats.
+        c, s = math.cos(-0.5 * yaw), math.sin(-0.5 * yaw)
+        q[0] = (c * w - s * y, c * x + s * z, c * y + s * w, c * z - s * x)
+
+        q_den = self._denoise(q)
+        q_b = _mul(q_den, self._delta(q_den))
+        q_b /= np.linalg.norm(q_b, axis=-1, keepdims=True)
+
+        prev = self._prev
+        self._prev = (px, py, pz, yaw)
+        if prev is None:
+            vel = np.zeros(3)
+            dyaw = 0.0
+        else:
+            c, s = math.cos(yaw), math.sin(yaw)
+            dx, dy, dz = px - prev[0], py - prev[1], pz - prev[2]
+            vel = np.array((c * dx - s * dz, dy, s * dx + c * dz))
+            d = yaw - prev[3]
+            dyaw = math.pi - (math.pi - d) % _TWO_PI
+        window = np.concatenate([vel[None], self._vel_past], axis=0)  # newest first
+        self._vel_past = window[:-1]
+        vx, vy, vz = (self._root_taps @ window * self._ratio).tolist()
+        if prev is None:  # frame 0: the output starts at the source's root and heading
+            self._out = (px, py, pz, yaw)
+        else:
+            out_yaw = self._out[3] + dyaw
+            c, s = math.cos(out_yaw), math.sin(out_yaw)
+            self._out = (
+                self._out[0] + (c * vx + s * vz),
+                self._out[1] + vy,
+                self._out[2] + (c * vz - s * vx),
+                out_yaw,
+            )
+        out_x, out_y, out_z, out_yaw = self._out
+        fw, fx, fy, fz = q_b[0]
+        c, s = math.cos(0.5 * out_yaw), math.sin(0.5 * out_yaw)
+        q_b[0] = (c * fw - s * fy, c * fx + s * fz, c * fy + s * fw, c * fz - s * fx)
+        return q_b, np.array((out_x, out_y, out_z))

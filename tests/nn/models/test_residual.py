@@ -1,0 +1,127 @@
+"""Residual retargeter specifics: starts as copy-scaled, causal denoiser, copied turning."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+
+from robot_retarget.nn import quaternion_torch as qt
+from robot_retarget.nn.features import compute_features
+from robot_retarget.nn.models.base import RetargetModel
+from robot_retarget.nn.models.registry import build_model
+from robot_retarget.nn.models.residual import CausalRotationDenoiser, ResidualRetargeter
+
+Motion = Callable[..., tuple[torch.Tensor, torch.Tensor]]
+
+
+def test_untrained_model_is_copy_scaled(
+    motion: Motion, skeleton_pair: tuple[torch.Tensor, torch.Tensor]
+) -> None:
+    model = build_model("residual", hidden_size=16, num_layers=2).eval()
+    baseline = build_model("copy-scaled")
+    src, tgt = skeleton_pair
+    quats, root = motion(2, 15)
+    with torch.no_grad():
+        ours = model(quats, root, src, tgt)
+        copy = baseline(quats, root, src, tgt)
+    torch.testing.assert_close(ours.root_pos, copy.root_pos, atol=1e-5, rtol=0)
+    angle = qt.angle_between(ours.local_quats, copy.local_quats)
+    assert float(angle.max()) < 1e-3
+
+
+def _denoiser_with_weights(weights: list[float]) -> CausalRotationDenoiser:
+    """A denoiser whose filter weights are constants (last layer: zero weights, bias w)."""
+    den = CausalRotationDenoiser(22, history=len(weights), hidden=8)
+    last = den.net[-1]
+    assert isinstance(last, torch.nn.Linear)
+    with torch.no_grad():
+        last.weight.zero_()
+        last.bias.copy_(torch.tensor(weights))
+    return den
+
+
+def test_zero_weights_pass_the_input_through(motion: Motion) -> None:
+    quats, _ = motion(2, 10)
+    with torch.no_grad():
+        out = _denoiser_with_weights([0.0, 0.0, 0.0])(quats)
+    assert float(qt.angle_between(out, quats).max()) < 1e-5
+
+
+def test_unit_first_weight_holds_the_previous_frame(motion: Motion) -> None:
+    """w = (1, 0, …): every non-root joint shows the previous frame's rotation, the root its
+    own: what the filter learns to do for a dropped joint."""
+    quats, _ = motion(2, 10)
+    with torch.no_grad():
+        out = _denoiser_with_weights([1.0, 0.0, 0.0])(quats)
+    held = qt.angle_between(out[:, 1:, 1:], quats[:, :-1, 1:])
+    assert float(held.max()) < 1e-4
+    assert float(qt.angle_between(out[:, :, 0], quats[:, :, 0]).max()) < 1e-6
+
+
+def test_step_equals_clip_denoiser(motion: Motion) -> None:
+    torch.manual_seed(3)
+    den = CausalRotationDenoiser(22, history=3, hidden=8)
+    for p in den.parameters():
+        torch.nn.init.normal_(p, 0.0, 0.3)
+    quats, _ = motion(2, 9)
+    with torch.no_grad():
+        clip = den(quats)
+        den.reset()
+        frames = torch.stack([den.step(quats[:, t]) for t in range(9)], dim=1)
+    torch.testing.assert_close(frames, clip, atol=1e-5, rtol=0)
+
+
+def test_turning_rate_is_the_sources(
+    tiny_model: Callable[[str], RetargetModel],
+    motion: Motion,
+    skeleton_pair: tuple[torch.Tensor, torch.Tensor],
+) -> None:
+    model = tiny_model("residual").eval()
+    src, tgt = skeleton_pair
+    quats, root = motion(2, 12)
+    feats = compute_features(quats, root, src)
+    with torch.no_grad():
+        pred = model.retarget(feats, src, tgt)
+    torch.testing.assert_close(pred.root_vel[..., 3], feats.root_vel[..., 3])
+
+
+def test_correction_depends_on_proportions_not_size(
+    tiny_model: Callable[[str], RetargetModel],
+    motion: Motion,
+    skeleton_pair: tuple[torch.Tensor, torch.Tensor],
+) -> None:
+    """A target scaled by k gets the same rotations and k times the root displacement."""
+    model = tiny_model("residual").eval()
+    src, tgt = skeleton_pair
+    quats, root = motion(2, 12)
+    with torch.no_grad():
+        small = model(quats, root, src, tgt)
+        large = model(quats, root, src, tgt * 3.0)
+    assert float(qt.angle_between(small.local_quats, large.local_quats).max()) < 1e-3
+    torch.testing.assert_close(
+        large.root_pos - large.root_pos[:, :1],
+        3.0 * (small.root_pos - small.root_pos[:, :1]),
+        atol=1e-4,
+        rtol=1e-4,
+    )
+
+
+def test_online_cache_follows_new_weights_after_training(
+    tiny_model: Callable[[str], RetargetModel],
+    motion: Motion,
+    skeleton_pair: tuple[torch.Tensor, torch.Tensor],
+) -> None:
+    """Per-skeleton terms cached in eval mode are dropped when the model trains again."""
+    model = tiny_model("residual")
+    assert isinstance(model, ResidualRetargeter)
+    src, tgt = skeleton_pair
+    quats, root = motion(2, 6)
+    model.eval()
+    with torch.no_grad():
+        before = model(quats, root, src, tgt).local_quats
+        model.train()
+        model.to_delta.bias.add_(0.5)
+        model.eval()
+        after = model(quats, root, src, tgt).local_quats
+    assert float(qt.angle_between(before, after).max()) > 1e-2

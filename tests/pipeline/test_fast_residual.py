@@ -1,0 +1,95 @@
+"""The numpy residual model equals the torch model's online step (to float32 rounding)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
+from robot_retarget.nn.models.registry import build_model
+from robot_retarget.nn.models.residual import ResidualRetargeter
+from robot_retarget.pipeline.fast_copy import online_retargeter
+from robot_retarget.pipeline.fast_residual import FastResidualRetargeter
+from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.skeleton.canonical import default_canonical_skeleton
+
+# float32 torch against float64 numpy; outputs are unit quaternions and metres.
+TOL = 2e-5
+
+
+def _trained_like(seed: int = 0) -> LoadedModel:
+    """A residual model whose zero-initialised layers and root filter have random values,
+    so every learned path (denoiser weights, correction, filter taps) is exercised."""
+    torch.manual_seed(seed)
+    model = build_model("residual", hidden_size=64, num_layers=3, denoiser_hidden=16)
+    with torch.no_grad():
+        for param in model.parameters():
+            if not param.any():
+                param.normal_(0.0, 0.05)
+        for norm in (model.pose_norm, model.rot_norm, model.offset_norm):
+            norm.mean.normal_(0.0, 0.1)
+            norm.std.uniform_(0.5, 2.0)
+    return LoadedModel(name="residual", model=model.eval())
+
+
+def _assert_same_stream(
+    model: LoadedModel, src: np.ndarray, tgt: np.ndarray, quats: np.ndarray, root: np.ndarray
+) -> None:
+    torch_step = OnlineRetargeter(model, src, tgt)
+    fast = online_retargeter(model, src, tgt)
+    assert isinstance(fast, FastResidualRetargeter)
+    for _ in range(2):  # reset restores every buffer
+        torch_step.reset()
+        fast.reset()
+        for t in range(len(quats)):
+            want_q, want_p = torch_step.step(quats[t], root[t])
+            got_q, got_p = fast.step(quats[t], root[t])
+            same_sign = np.sign(np.sum(got_q * want_q, axis=-1, keepdims=True))
+            np.testing.assert_allclose(got_q * same_sign, want_q, rtol=0, atol=TOL)
+            np.testing.assert_allclose(got_p, want_p, rtol=0, atol=TOL)
+
+
+def test_equals_the_torch_model_on_the_demo(demo: HumanMotion, op3: RobotConfig) -> None:
+    tgt = robot_canonical_skeleton(op3).offsets
+    n = 120
+    _assert_same_stream(
+        _trained_like(), demo.skeleton.offsets, tgt, demo.local_quats[:n], demo.root_pos[:n]
+    )
+
+
+@settings(max_examples=10, deadline=None)
+@given(
+    arrays(np.float64, (6, 22, 3), elements=st.floats(-3.1, 3.1)),
+    arrays(np.float64, (6, 3), elements=st.floats(-5.0, 5.0)),
+)
+def test_equals_the_torch_model_on_wild_streams(rotvecs: np.ndarray, root: np.ndarray) -> None:
+    """Arbitrary rotations (dropped joints, flips) and root jumps."""
+    src = default_canonical_skeleton().offsets
+    _assert_same_stream(_trained_like(1), src, 0.4 * src, quat.from_rotation_vector(rotvecs), root)
+
+
+def test_wrong_shapes_raise(demo: HumanMotion) -> None:
+    src = demo.skeleton.offsets
+    model = _trained_like()
+    assert isinstance(model.model, ResidualRetargeter)
+    fast = online_retargeter(model, src, src)
+    with pytest.raises(ValueError, match="local_quats"):
+        fast.step(np.zeros((21, 4)), np.zeros(3))
+    with pytest.raises(ValueError, match="root_pos"):
+        fast.step(demo.local_quats[0], np.zeros(2))
+    with pytest.raises(ValueError, match="target_offsets"):
+        FastResidualRetargeter(model.model, src, src[:5])
+
+
+def test_inputs_are_not_modified(demo: HumanMotion) -> None:
+    fast = online_retargeter(_trained_like(), demo.skeleton.offsets, demo.skeleton.offsets)
+    quats = demo.local_quats[5].copy()
+    fast.step(quats, demo.root_pos[5])
+    np.testing.assert_array_equal(quats, demo.local_quats[5])
