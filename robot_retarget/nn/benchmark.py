@@ -1,5 +1,6 @@
 """``bench model``: time per frame of a retargeting model, online (one ``step`` per frame) and
-per clip (one forward pass, time divided by the frames).
+per clip (one forward pass, time divided by the frames). Models the live pipeline runs in numpy
+(copy, copy-scaled, residual) get a third row, ``online-numpy``, in the same run.
 
 The goal is ≤ 0.3 ms median per frame on one core for NKN and PMnet online. The input is a
 synthetic motion (smooth random rotations on the default canonical skeleton, a walking root)
@@ -81,14 +82,31 @@ def resolve(name: str) -> tuple[LoadedModel, str]:
     return LoadedModel(name=name, model=build_model(name).eval()), "untrained"
 
 
+def has_numpy_twin(model: LoadedModel) -> bool:
+    """Whether the live pipeline runs ``model``'s online step in numpy instead of torch."""
+    from robot_retarget.pipeline.fast_copy import online_retargeter
+
+    src = default_canonical_skeleton().offsets
+    return not isinstance(online_retargeter(model, src, src), OnlineRetargeter)
+
+
 def _target_offsets() -> FloatArray:
     # A third of an adult: robot-sized proportions without reading a robot config.
     return np.asarray(default_canonical_skeleton().offsets * 0.33, dtype=np.float64)
 
 
-def time_online(model: LoadedModel, frames: int, warmup: int) -> TimingStats:
+def time_online(
+    model: LoadedModel, frames: int, warmup: int, numpy_twin: bool = False
+) -> TimingStats:
+    """Per-frame time of the online step: torch (``OnlineRetargeter``), or with ``numpy_twin``
+    the numpy step the live pipeline runs (robot_retarget.pipeline.fast_copy.online_retargeter)."""
+    from robot_retarget.pipeline.fast_copy import OnlineStep, online_retargeter
+
     q, root = synthetic_motion(frames + warmup)
-    online = OnlineRetargeter(model, default_canonical_skeleton().offsets, _target_offsets())
+    src, tgt = default_canonical_skeleton().offsets, _target_offsets()
+    online: OnlineStep = (
+        online_retargeter(model, src, tgt) if numpy_twin else OnlineRetargeter(model, src, tgt)
+    )
     online.reset()
     durations = []
     for i in range(frames + warmup):
@@ -126,10 +144,14 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     try:
         for name in names:
             model, weights = resolve(name)
-            modes = ("online", "clip") if args.mode == "both" else (args.mode,)
+            modes: tuple[str, ...] = ("online", "clip") if args.mode == "both" else (args.mode,)
+            if "online" in modes and has_numpy_twin(model):
+                modes = ("online", "online-numpy", *modes[1:])
             for mode in modes:
-                if mode == "online":
-                    stats = time_online(model, args.frames, args.warmup)
+                if mode.startswith("online"):
+                    stats = time_online(
+                        model, args.frames, args.warmup, numpy_twin=mode == "online-numpy"
+                    )
                 else:
                     stats = time_clip(model, args.frames, args.clip_repeats)
                 records.append(

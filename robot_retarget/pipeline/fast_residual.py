@@ -16,7 +16,6 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-import torch
 
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.nn.models.residual import ResidualRetargeter
@@ -28,14 +27,6 @@ FloatArray = npt.NDArray[np.float64]
 _J = len(CANONICAL_JOINTS)
 _TWO_PI = 2.0 * math.pi
 _REL_SCALE = 10.0  # as robot_retarget.nn.models.residual
-
-
-def _np(t: torch.Tensor) -> FloatArray:
-    return np.asarray(t.detach().cpu().double().numpy(), dtype=np.float64)
-
-
-def _linear_layers(seq: torch.nn.Module) -> list[tuple[FloatArray, FloatArray]]:
-    return [(_np(m.weight), _np(m.bias)) for m in seq.modules() if isinstance(m, torch.nn.Linear)]
 
 
 def _hamilton_table() -> FloatArray:
@@ -129,29 +120,25 @@ class FastResidualRetargeter:
         h_src, h_tgt = rest_height_m(src), rest_height_m(tgt)
         self._h_src = h_src
         self._ratio = h_tgt / h_src
-        with torch.no_grad():
-            self._den_layers = _linear_layers(model.denoiser.net)
-            self._history = model.denoiser.history
-            self._code = np.eye(_J)
-            pose_mean, pose_std = _np(model.pose_norm.mean), _np(model.pose_norm.std)
-            rot_mean, rot_std = _np(model.rot_norm.mean), _np(model.rot_norm.std)
-            off_mean, off_std = _np(model.offset_norm.mean), _np(model.offset_norm.std)
-            layers = _linear_layers(model.correction)
-            w0, b0 = layers[0]
-            pose_dim = 9 * _J
-            ref_a = (src.reshape(-1) / h_src - off_mean) / off_std
-            ref_b = (tgt.reshape(-1) / h_tgt - off_mean) / off_std
-            k = 3 * _J
-            # The skeletons' share of the first layer is fixed for this pair: fold it in.
-            self._first_bias = (
-                b0 + w0[:, pose_dim : pose_dim + k] @ ref_a + w0[:, pose_dim + k :] @ ref_b
-            )
-            self._in_mean = np.concatenate([pose_mean, rot_mean])
-            self._in_std = np.concatenate([pose_std, rot_std])
-            self._first_weight = w0[:, :pose_dim]
-            self._hidden = layers[1:]
-            self._to_delta = (_np(model.to_delta.weight), _np(model.to_delta.bias))
-            self._root_taps = _np(model.root_filter.weights())
+        w = model.export_weights()
+        self._den_layers = w.denoiser_layers
+        self._history = w.denoiser_history
+        self._code = np.eye(_J)
+        w0, b0 = w.correction_layers[0]
+        pose_dim = 9 * _J
+        k = 3 * _J
+        ref_a = (src.reshape(-1) / h_src - w.offset_mean) / w.offset_std
+        ref_b = (tgt.reshape(-1) / h_tgt - w.offset_mean) / w.offset_std
+        # The skeletons' share of the first layer is fixed for this pair: fold it in.
+        self._first_bias = (
+            b0 + w0[:, pose_dim : pose_dim + k] @ ref_a + w0[:, pose_dim + k :] @ ref_b
+        )
+        self._first_weight = w0[:, :pose_dim]
+        self._in_mean = np.concatenate([w.pose_mean, w.rot_mean])
+        self._in_std = np.concatenate([w.pose_std, w.rot_std])
+        self._hidden = w.correction_layers[1:]
+        self._to_delta = w.to_delta
+        self._root_taps = w.root_taps
         self.reset()
 
     def reset(self) -> None:

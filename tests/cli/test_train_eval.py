@@ -110,10 +110,13 @@ def test_bad_model_config_is_a_clear_error(mocap: Path, tmp_path: Path) -> None:
         _run(train_cmd, [*args, "--model-config", "oops"])
 
 
-def test_bench_defaults_cover_copy_nkn_pmnet() -> None:
+def test_bench_defaults_cover_copy_nkn_pmnet_residual() -> None:
     parser = argparse.ArgumentParser()
     benchmark.configure(parser)
     args = parser.parse_args(["--frames", "5", "--warmup", "1", "--clip-repeats", "1"])
     records = benchmark.run(args)
-    assert {r["model"] for r in records} == {"copy", "nkn", "pmnet"}
+    assert {r["model"] for r in records} == {"copy", "nkn", "pmnet", "residual"}
     assert {"model", "mode", "frames", "median_ms", "p99_ms"} <= set(records[0])
+    # The live pipeline's numpy steps are timed next to the torch ones, in the same run.
+    numpy_rows = {r["model"] for r in records if r["mode"] == "online-numpy"}
+    assert numpy_rows == {"copy", "residual"}

@@ -35,6 +35,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
 import torch
 from torch import nn
 from torch.nn import functional as nnf
@@ -52,6 +54,7 @@ from robot_retarget.nn.models.normalization import Standardizer
 from robot_retarget.nn.models.pmnet import hamilton
 
 Tensor = torch.Tensor
+FloatArray = npt.NDArray[np.float64]
 
 # Relative rotations between neighbouring frames are a few hundredths of a radian; scaled so
 # the denoiser's inputs are of order one.
@@ -174,6 +177,32 @@ class CausalVelocityFilter(nn.Module):
         return (self.weights()[None, :, None] * window).sum(dim=1)
 
 
+@dataclass(frozen=True)
+class ResidualWeights:
+    """A residual model's parameters as float64 numpy arrays, for numpy twins of its step
+    (robot_retarget.pipeline.fast_residual): every Linear as (weight, bias) in order."""
+
+    denoiser_layers: tuple[tuple[FloatArray, FloatArray], ...]
+    denoiser_history: int
+    pose_mean: FloatArray
+    pose_std: FloatArray
+    rot_mean: FloatArray
+    rot_std: FloatArray
+    offset_mean: FloatArray
+    offset_std: FloatArray
+    correction_layers: tuple[tuple[FloatArray, FloatArray], ...]
+    to_delta: tuple[FloatArray, FloatArray]
+    root_taps: FloatArray
+
+
+def _np(t: Tensor) -> FloatArray:
+    return np.asarray(t.detach().cpu().double().numpy(), dtype=np.float64)
+
+
+def _linear_layers(seq: nn.Module) -> tuple[tuple[FloatArray, FloatArray], ...]:
+    return tuple((_np(m.weight), _np(m.bias)) for m in seq.modules() if isinstance(m, nn.Linear))
+
+
 class ResidualRetargeter(RetargetModel):
     """Copy-scaled plus a learned denoiser and pose correction (see the module docstring)."""
 
@@ -225,6 +254,23 @@ class ResidualRetargeter(RetargetModel):
         self.pose_norm.fit(features.pose_flat / h[:, None, None])
         self.rot_norm.fit(qt.to_rotation_6d(features.local_quats).flatten(-2))
         self.offset_norm.fit(offsets.flatten(-2) / h[:, None])
+
+    @torch.no_grad()
+    def export_weights(self) -> ResidualWeights:
+        """The parameters as numpy arrays (see :class:`ResidualWeights`)."""
+        return ResidualWeights(
+            denoiser_layers=_linear_layers(self.denoiser.net),
+            denoiser_history=self.denoiser.history,
+            pose_mean=_np(self.pose_norm.mean),
+            pose_std=_np(self.pose_norm.std),
+            rot_mean=_np(self.rot_norm.mean),
+            rot_std=_np(self.rot_norm.std),
+            offset_mean=_np(self.offset_norm.mean),
+            offset_std=_np(self.offset_norm.std),
+            correction_layers=_linear_layers(self.correction),
+            to_delta=(_np(self.to_delta.weight), _np(self.to_delta.bias)),
+            root_taps=_np(self.root_filter.weights()),
+        )
 
     def train(self, mode: bool = True) -> ResidualRetargeter:
         self._consts = None  # cached terms of F_Δ go stale once the weights train again
