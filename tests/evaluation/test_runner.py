@@ -98,6 +98,9 @@ def test_acceptance_goals() -> None:
         "denoise below copy and copy-scaled": True,
         "bone_deg within 2° of copy": True,
     }
+    details = {c.goal: c.detail for c in acceptance([copy, scaled, good], "net")}
+    assert "lossless here, so this cannot be met" in details["cycle below copy"]
+    assert "lossless" not in details["ee below copy"]
     bad = _result("bad", denoise=3.5, bone_deg=12.5)
     checks = {c.goal: c.met for c in acceptance([copy, scaled, bad], "bad")}
     assert not checks["denoise below copy and copy-scaled"]
