@@ -147,20 +147,9 @@ class PMnet(RetargetModel):
         self.offset_norm.fit(offsets.flatten(-2))
         self.movement_norm.fit(normalize_movement(features.root_vel, pmnet_scale(offsets)))
 
-    def encode_pose(self, pose_flat: Tensor, frozen: bool = False) -> Tensor:
-        """φ = F_P(p) for local poses (…, 3J) in metres.
-
-        ``frozen``: the encoder's weights take no gradient (it still flows to ``pose_flat``),
-        for the perceptual loss's target side (see training.pmnet_training_step).
-        """
+    def encode_pose(self, pose_flat: Tensor) -> Tensor:
+        """φ = F_P(p) for local poses (…, 3J) in metres."""
         x = self.pose_norm(pose_flat)
-        if frozen:
-            for layer in self.pose_encoder:
-                if isinstance(layer, nn.Linear):
-                    x = nnf.linear(x, layer.weight.detach(), layer.bias.detach())
-                else:
-                    x = layer(x)
-            return x
         if self.training:
             encoded: Tensor = self.pose_encoder(x)
             return encoded
