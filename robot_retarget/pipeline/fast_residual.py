@@ -17,7 +17,6 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.geometry import quaternion as quat
 from robot_retarget.nn.models.residual import ResidualRetargeter
 from robot_retarget.pipeline.fast_copy import rest_height_m
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
@@ -49,24 +48,64 @@ _HAMILTON = _hamilton_table()
 
 
 def _mul(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Hamilton product of broadcastable quaternion arrays (…, 4): one outer product, one
-    matmul (per-call overhead is what costs at this size)."""
-    a, b = np.broadcast_arrays(a, b)
+    """Hamilton product of same-shaped quaternion arrays (…, 4): one outer product, one matmul
+    (per-call overhead is what costs at this size)."""
     outer = (a[..., :, None] * b[..., None, :]).reshape(*a.shape[:-1], 16)
     return np.asarray(outer @ _HAMILTON, dtype=np.float64)
 
 
+def _left_matrices(q: FloatArray) -> FloatArray:
+    """(…, 4, 4) matrices L(q) with q ⊗ p = L(q) p."""
+    return np.asarray(q @ _LEFT, dtype=np.float64).reshape(*q.shape[:-1], 4, 4)
+
+
+# H[i, k, o]: the coefficient of a_i b_k in output o, so L(a)[o, k] = Σ_i a_i H[i, k, o].
+_LEFT = np.einsum("iko->iok", _HAMILTON.reshape(4, 4, 4)).reshape(4, 16)
+
+
+def _matrix_table() -> FloatArray:
+    """(16, 9) T with R(q).flatten() = (q qᵀ).flatten() @ T for unit q (FrameKinematics')."""
+    t = np.zeros((4, 4, 9))
+    w, x, y, z = range(4)
+    for entry, signs in ((0, (1, 1, -1, -1)), (4, (1, -1, 1, -1)), (8, (1, -1, -1, 1))):
+        for i, sign in enumerate(signs):
+            t[i, i, entry] = sign
+    for entry, i, k, sign in (
+        (1, x, y, 1), (1, w, z, -1), (2, x, z, 1), (2, w, y, 1),
+        (3, x, y, 1), (3, w, z, 1), (5, y, z, 1), (5, w, x, -1),
+        (6, x, z, 1), (6, w, y, -1), (7, y, z, 1), (7, w, x, 1),
+    ):  # fmt: skip
+        t[i, k, entry] += sign
+        t[k, i, entry] += sign
+    return t.reshape(16, 9)
+
+
+_MATRIX = _matrix_table()
+
+
 def _matrices(q: FloatArray) -> FloatArray:
-    """Rotation matrices (J, 3, 3) of unit quaternions (J, 4) (the quadratic form)."""
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1),
-        ],
-        axis=-2,
-    )
+    """Rotation matrices (J, 3, 3) of unit quaternions (J, 4)."""
+    outer = (q[:, :, None] * q[:, None, :]).reshape(-1, 16)
+    return np.asarray(outer @ _MATRIX, dtype=np.float64).reshape(-1, 3, 3)
+
+
+def _rotvec(q: FloatArray) -> FloatArray:
+    """Rotation vectors (…, 3) of unit quaternions (…, 4), shortest arc.
+
+    2·atan2(s, |w|)/s stays exact for tiny s (atan2 does not lose the ratio) and gives 0 at
+    s = 0, so no series branch is needed (geometry.quaternion.to_rotation_vector agrees, tested).
+    """
+    w = q[..., :1]
+    v = q[..., 1:] * np.where(w < 0.0, -1.0, 1.0)
+    s = np.sqrt(np.sum(v * v, axis=-1, keepdims=True))
+    return np.asarray(2.0 * np.arctan2(s, np.abs(w)) / np.maximum(s, 1e-300) * v)
+
+
+def _from_rotvec(r: FloatArray) -> FloatArray:
+    """Unit quaternions (…, 4) of rotation vectors (…, 3)."""
+    angle = np.sqrt(np.sum(r * r, axis=-1, keepdims=True))
+    # sin(a/2)/a = ½·sinc(a/2π): exact and smooth at zero.
+    return np.concatenate([np.cos(0.5 * angle), 0.5 * np.sinc(angle / (2 * np.pi)) * r], axis=-1)
 
 
 class _TreeKinematics:
@@ -121,9 +160,11 @@ class FastResidualRetargeter:
         self._h_src = h_src
         self._ratio = h_tgt / h_src
         w = model.export_weights()
-        self._den_layers = w.denoiser_layers
         self._history = w.denoiser_history
-        self._code = np.eye(_J)
+        # The joint one-hot code's share of the denoiser's first layer is a per-joint bias.
+        (d0, e0), *self._den_rest = w.denoiser_layers
+        n_feat = 4 * self._history + 1
+        self._den_first = (d0[:, :n_feat].T.copy(), e0[None] + d0[:, n_feat:].T)
         w0, b0 = w.correction_layers[0]
         pose_dim = 9 * _J
         k = 3 * _J
@@ -133,9 +174,13 @@ class FastResidualRetargeter:
         self._first_bias = (
             b0 + w0[:, pose_dim : pose_dim + k] @ ref_a + w0[:, pose_dim + k :] @ ref_b
         )
-        self._first_weight = w0[:, :pose_dim]
-        self._in_mean = np.concatenate([w.pose_mean, w.rot_mean])
-        self._in_std = np.concatenate([w.pose_std, w.rot_std])
+        # Input standardisation folded into the first layer: W (x − μ)/σ = (W/σ) x − (W/σ) μ.
+        mean = np.concatenate([w.pose_mean, w.rot_mean])
+        std = np.concatenate([w.pose_std, w.rot_std])
+        scale = np.concatenate([np.full(3 * _J, 1.0 / h_src), np.ones(6 * _J)])
+        w_pose = w0[:, :pose_dim] / std
+        self._first_bias = self._first_bias - w_pose @ mean
+        self._first_weight = w_pose * scale
         self._hidden = w.correction_layers[1:]
         self._to_delta = w.to_delta
         self._root_taps = w.root_taps
@@ -152,23 +197,23 @@ class FastResidualRetargeter:
         if self._past is None:
             self._past = np.repeat(q[:, None], self._history, axis=1)
         conj = q * np.array([1.0, -1.0, -1.0, -1.0])
-        rel = quat.to_rotation_vector(_mul(conj[:, None], self._past))  # (J, K, 3)
-        own = np.linalg.norm(quat.to_rotation_vector(q), axis=-1)
-        x = np.concatenate(
+        # q_t⁻¹ ⊗ q_t−k for every k at once: one batched (K, 4) @ (4, 4) per joint.
+        rel = _rotvec(self._past @ _left_matrices(conj).transpose(0, 2, 1))  # (J, K, 3)
+        own = 2.0 * np.arctan2(np.sqrt(np.sum(q[:, 1:] ** 2, axis=-1)), np.abs(q[:, 0]))
+        feats = np.concatenate(
             [
                 rel.reshape(_J, -1) * _REL_SCALE,
-                np.linalg.norm(rel, axis=-1) * _REL_SCALE,
+                np.sqrt(np.sum(rel * rel, axis=-1)) * _REL_SCALE,
                 own[:, None],
-                self._code,
             ],
             axis=-1,
         )
-        for i, (w, b) in enumerate(self._den_layers):
-            x = x @ w.T + b
-            if i < len(self._den_layers) - 1:
-                x = np.maximum(x, 0.0)
-        correction = np.einsum("jk,jkc->jc", x, rel)
-        out = _mul(q, quat.from_rotation_vector(correction))
+        w_first, b_first = self._den_first
+        x = feats @ w_first + b_first
+        for w, b in self._den_rest:
+            x = np.maximum(x, 0.0) @ w.T + b
+        correction = np.sum(x[:, :, None] * rel, axis=1)
+        out = _mul(q, _from_rotvec(correction))
         out[0] = q[0]
         self._past = np.concatenate([q[:, None], self._past[:, :-1]], axis=1)
         return out
@@ -176,10 +221,8 @@ class FastResidualRetargeter:
     def _delta(self, q: FloatArray) -> FloatArray:
         rot = _matrices(q)
         pos = self._kin.positions(rot, self._src)
-        six = np.concatenate([rot[:, :, 0], rot[:, :, 1]], axis=-1)
-        x = (np.concatenate([pos.reshape(-1) / self._h_src, six.reshape(-1)]) - self._in_mean) / (
-            self._in_std
-        )
+        six = rot[:, :, :2].transpose(0, 2, 1)  # per joint: column 0, then column 1 (6D)
+        x = np.concatenate([pos.reshape(-1), six.reshape(-1)])
         x = np.maximum(self._first_weight @ x + self._first_bias, 0.0)
         for w, b in self._hidden:
             x = np.maximum(w @ x + b, 0.0)

@@ -93,3 +93,23 @@ def test_inputs_are_not_modified(demo: HumanMotion) -> None:
     quats = demo.local_quats[5].copy()
     fast.step(quats, demo.root_pos[5])
     np.testing.assert_array_equal(quats, demo.local_quats[5])
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    arrays(np.float64, (8, 3), elements=st.floats(-3.1, 3.1)),
+    st.floats(1e-12, 1.0),
+)
+def test_rotation_vectors_agree_with_the_geometry_module(
+    rotvecs: np.ndarray, shrink: float
+) -> None:
+    """The fast shortest-arc log, for large, tiny and zero rotations and both signs of q."""
+    from robot_retarget.pipeline.fast_residual import _from_rotvec, _rotvec
+
+    for r in (rotvecs, rotvecs * shrink, np.zeros((2, 3))):
+        q = quat.from_rotation_vector(r)
+        for signed in (q, -q):
+            np.testing.assert_allclose(
+                _rotvec(signed), quat.to_rotation_vector(signed), rtol=1e-9, atol=1e-15
+            )
+        np.testing.assert_allclose(_from_rotvec(r), q, rtol=1e-12, atol=1e-15)

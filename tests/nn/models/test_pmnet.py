@@ -135,4 +135,3 @@ def test_online_constants_follow_a_new_target(
         second = model.step(quats[:, 1], root[:, 1], src, tgt * 2.0)
     # The pose path is per frame: frame 1's joint rotations depend on frame 1 and ref_B only.
     torch.testing.assert_close(second.local_quats[:, 1:], expected.local_quats[:, 1, 1:])
-
