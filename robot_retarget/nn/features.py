@@ -27,8 +27,10 @@ from functools import lru_cache
 
 import torch
 
+from robot_retarget.geometry.quaternion_tables import matrix_table
 from robot_retarget.nn import fk_torch
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.tree_tables import ancestor_matrix, pointer_jumps
 
 Tensor = torch.Tensor
 
@@ -204,13 +206,7 @@ def _rest_positions(offsets: Tensor, parents: Sequence[int]) -> Tensor:
 @torch.inference_mode(False)
 def _ancestor_matrix(parents: tuple[int, ...]) -> Tensor:
     """(J, J) 0/1 matrix: row n marks the joints whose offsets add up to n's rest position."""
-    chain = torch.zeros(len(parents), len(parents))
-    for n in range(len(parents)):
-        k = n
-        while k > 0:  # the root's own offset never moves a joint (root_pos does)
-            chain[n, k] = 1.0
-            k = parents[k]
-    return chain
+    return torch.tensor(ancestor_matrix(parents), dtype=torch.float32)
 
 
 def _check_motion(local_quats: Tensor, root_pos: Tensor, offsets: Tensor) -> None:
@@ -226,20 +222,7 @@ def _check_motion(local_quats: Tensor, root_pos: Tensor, offsets: Tensor) -> Non
 @torch.inference_mode(False)
 def _quat_to_matrix_table() -> Tensor:
     """(16, 9) table T with R(q).flatten() = (q qᵀ).flatten() @ T for unit quaternions q."""
-    t = torch.zeros(4, 4, 9)
-    w, x, y, z = range(4)
-    for entry, signs in ((0, (1, 1, -1, -1)), (4, (1, -1, 1, -1)), (8, (1, -1, -1, 1))):
-        for a, sign in enumerate(signs):
-            t[a, a, entry] = sign
-    # Off-diagonal entries 2(ab ± cd): q qᵀ holds each product twice.
-    for entry, a, b, sign in (
-        (1, x, y, 1), (1, w, z, -1), (2, x, z, 1), (2, w, y, 1),
-        (3, x, y, 1), (3, w, z, 1), (5, y, z, 1), (5, w, x, -1),
-        (6, x, z, 1), (6, w, y, -1), (7, y, z, 1), (7, w, x, 1),
-    ):  # fmt: skip
-        t[a, b, entry] += sign
-        t[b, a, entry] += sign
-    return t.reshape(16, 9)
+    return torch.tensor(matrix_table(), dtype=torch.float32)
 
 
 class FrameKinematics:
@@ -259,16 +242,9 @@ class FrameKinematics:
         j = len(parents)
         self.num_joints = j
         # Index j is a sentinel "parent of the root" holding the identity.
-        parent = [j if p < 0 else int(p) for p in parents] + [j]
-        depth = [0] * j
-        for i in range(1, j):
-            depth[i] = depth[parents[i]] + 1
-        jumps = [parent]
-        while 2 ** len(jumps) < max(depth) + 1:
-            prev = jumps[-1]
-            jumps.append([prev[prev[i]] for i in range(j + 1)])
+        jumps = pointer_jumps(parents)
         self._jumps = [torch.tensor(a) for a in jumps]
-        self._parent = torch.tensor(parent[:j])
+        self._parent = torch.tensor(jumps[0][:j])
         self._chain = _ancestor_matrix(tuple(parents))
         self._table = _quat_to_matrix_table()
 

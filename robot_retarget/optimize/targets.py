@@ -18,10 +18,12 @@ import numpy.typing as npt
 
 from robot_retarget.errors import SolveError
 from robot_retarget.geometry import quaternion as quat
+from robot_retarget.geometry.quaternion_tables import product_table, rotation_table
 from robot_retarget.optimize.formulation import RobotProblem
 from robot_retarget.robot.config import FloatArray
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
+from robot_retarget.skeleton.tree_tables import pointer_jumps
 
 
 @dataclass(frozen=True)
@@ -175,34 +177,6 @@ def targets_from_globals(
     return ClipTargets(directions=dirs, normals=normals, ee_positions=ee)
 
 
-def _product_table() -> FloatArray:
-    """(16, 4) table T with a ⊗ b = (a bᵀ).flatten() @ T (the Hamilton product)."""
-    basis = np.eye(4)
-    return np.array([quat.mul(basis[a], basis[b]) for a in range(4) for b in range(4)])
-
-
-def _rotation_table() -> FloatArray:
-    """(16, 9) table T with quat.rotate(q, ·) = (q qᵀ).flatten() @ T + I as a 3×3 matrix.
-
-    Read off quat.rotate itself (v + w·t + u × t is quadratic in q): the same linear map for
-    any q, unit or not.
-    """
-    basis = np.eye(4)
-
-    def form(q: FloatArray) -> FloatArray:  # the quadratic part of rotate(q, ·), row-major 3×3
-        return np.asarray((quat.rotate(q[None], np.eye(3)) - np.eye(3)).T.ravel())
-
-    table = np.zeros((4, 4, 9))
-    for a in range(4):
-        table[a, a] = form(basis[a])
-        for b in range(a + 1, 4):
-            # Polarisation: the form of e_a + e_b minus the squares is the cross term.
-            table[a, b] = table[b, a] = 0.5 * (
-                form(basis[a] + basis[b]) - form(basis[a]) - form(basis[b])
-            )
-    return table.reshape(16, 9)
-
-
 class FrameTargetBuilder:
     """:func:`targets_from_rotations` for one frame at a time (the live path), same numbers.
 
@@ -229,13 +203,8 @@ class FrameTargetBuilder:
         j = len(CANONICAL_JOINTS)
         parents = skeleton.parents
         # Row j is a sentinel "parent of the root" that holds the identity.
-        parent = [j if p < 0 else p for p in parents] + [j]
-        depth = [0] * j
-        for i in range(1, j):
-            depth[i] = depth[parents[i]] + 1
-        jumps = [parent]
-        while 2 ** len(jumps) < max(depth) + 1:
-            jumps.append([jumps[-1][jumps[-1][i]] for i in range(j + 1)])
+        jumps = pointer_jumps(parents)
+        parent = jumps[0]
         self._jumps = [np.array(a, dtype=np.int64) for a in jumps]
         self._glob = np.zeros((j + 1, 4))
         self._glob[j, 0] = 1.0
@@ -272,8 +241,8 @@ class FrameTargetBuilder:
         self._fallback = np.concatenate([np.array([b.rest_axis for b in bones])] * 2)
         self._body_to_root = problem.body_to_root
         self._hip_center = problem.hip_center
-        self._mul = _product_table()
-        self._rot = _rotation_table()
+        self._mul = product_table()
+        self._rot = rotation_table()
         self._eye = np.eye(3).ravel()
 
     def __call__(self, local_quats: npt.ArrayLike) -> FrameTargets:

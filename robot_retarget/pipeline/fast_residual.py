@@ -17,9 +17,11 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.geometry.quaternion_tables import matrix_table, product_table
 from robot_retarget.nn.models.residual import ResidualRetargeter
 from robot_retarget.pipeline.fast_copy import rest_height_m
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
+from robot_retarget.skeleton.tree_tables import ancestor_matrix, pointer_jumps
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -28,23 +30,7 @@ _TWO_PI = 2.0 * math.pi
 _REL_SCALE = 10.0  # as robot_retarget.nn.models.residual
 
 
-def _hamilton_table() -> FloatArray:
-    """(16, 4) H with a ⊗ b = (a bᵀ).flatten() @ H, as robot_retarget.nn.models.pmnet."""
-    table = np.zeros((4, 4, 4))
-    for out, terms in enumerate(
-        (
-            ((0, 0, 1), (1, 1, -1), (2, 2, -1), (3, 3, -1)),
-            ((0, 1, 1), (1, 0, 1), (2, 3, 1), (3, 2, -1)),
-            ((0, 2, 1), (1, 3, -1), (2, 0, 1), (3, 1, 1)),
-            ((0, 3, 1), (1, 2, 1), (2, 1, -1), (3, 0, 1)),
-        )
-    ):
-        for i, k, sign in terms:
-            table[i, k, out] = sign
-    return table.reshape(16, 4)
-
-
-_HAMILTON = _hamilton_table()
+_HAMILTON = product_table()
 
 
 def _mul(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -63,24 +49,7 @@ def _left_matrices(q: FloatArray) -> FloatArray:
 _LEFT = np.einsum("iko->iok", _HAMILTON.reshape(4, 4, 4)).reshape(4, 16)
 
 
-def _matrix_table() -> FloatArray:
-    """(16, 9) T with R(q).flatten() = (q qᵀ).flatten() @ T for unit q (FrameKinematics')."""
-    t = np.zeros((4, 4, 9))
-    w, x, y, z = range(4)
-    for entry, signs in ((0, (1, 1, -1, -1)), (4, (1, -1, 1, -1)), (8, (1, -1, -1, 1))):
-        for i, sign in enumerate(signs):
-            t[i, i, entry] = sign
-    for entry, i, k, sign in (
-        (1, x, y, 1), (1, w, z, -1), (2, x, z, 1), (2, w, y, 1),
-        (3, x, y, 1), (3, w, z, 1), (5, y, z, 1), (5, w, x, -1),
-        (6, x, z, 1), (6, w, y, -1), (7, y, z, 1), (7, w, x, 1),
-    ):  # fmt: skip
-        t[i, k, entry] += sign
-        t[k, i, entry] += sign
-    return t.reshape(16, 9)
-
-
-_MATRIX = _matrix_table()
+_MATRIX = matrix_table()
 
 
 def _matrices(q: FloatArray) -> FloatArray:
@@ -112,24 +81,10 @@ class _TreeKinematics:
     """Root-relative joint positions of one frame by pointer jumping (FrameKinematics' scheme)."""
 
     def __init__(self, parents: tuple[int, ...]) -> None:
-        j = len(parents)
-        parent = [j if p < 0 else p for p in parents] + [j]
-        depth = [0] * j
-        for i in range(1, j):
-            depth[i] = depth[parents[i]] + 1
-        jumps = [parent]
-        while 2 ** len(jumps) < max(depth) + 1:
-            prev = jumps[-1]
-            jumps.append([prev[prev[i]] for i in range(j + 1)])
+        jumps = pointer_jumps(parents)
         self._jumps = [np.array(a) for a in jumps]
-        self._parent = np.array(parent[:j])
-        chain = np.zeros((j, j))
-        for n in range(j):
-            k = n
-            while k > 0:
-                chain[n, k] = 1.0
-                k = parents[k]
-        self._chain = chain
+        self._parent = np.array(jumps[0][: len(parents)])
+        self._chain = ancestor_matrix(parents)
 
     def positions(self, rot: FloatArray, offsets: FloatArray) -> FloatArray:
         """Positions (J, 3) from local rotation matrices (J, 3, 3) and rest offsets (J, 3)."""

@@ -29,6 +29,7 @@ import torch
 from torch import nn
 from torch.nn import functional as nnf
 
+from robot_retarget.geometry.quaternion_tables import product_table
 from robot_retarget.nn import quaternion_torch as qt
 from robot_retarget.nn.features import (
     ROOT_VEL_DIM,
@@ -229,19 +230,7 @@ class _FrameConstants:
 @torch.inference_mode(False)
 def _hamilton_table() -> Tensor:
     """(16, 4) table H with (a ⊗ b) = (a bᵀ).flatten() @ H (the Hamilton product)."""
-    table = torch.zeros(4, 4, 4)
-    # (output component, a index, b index, sign), from the product's four lines.
-    for out, terms in enumerate(
-        (
-            ((0, 0, 1), (1, 1, -1), (2, 2, -1), (3, 3, -1)),
-            ((0, 1, 1), (1, 0, 1), (2, 3, 1), (3, 2, -1)),
-            ((0, 2, 1), (1, 3, -1), (2, 0, 1), (3, 1, 1)),
-            ((0, 3, 1), (1, 2, 1), (2, 1, -1), (3, 0, 1)),
-        )
-    ):
-        for a, b, sign in terms:
-            table[a, b, out] = sign
-    return table.reshape(16, 4)
+    return torch.tensor(product_table(), dtype=torch.float32)
 
 
 _HAMILTON = _hamilton_table()
