@@ -138,6 +138,7 @@ class FastResidualRetargeter:
         self._first_weight = w_pose * scale
         self._hidden = w.correction_layers[1:]
         self._to_delta = w.to_delta
+        self._max_correction = w.max_correction_rad
         self._root_taps = w.root_taps
         self.reset()
 
@@ -182,8 +183,8 @@ class FastResidualRetargeter:
         for w, b in self._hidden:
             x = np.maximum(w @ x + b, 0.0)
         w, b = self._to_delta
-        delta = (w @ x + b).reshape(_J, 4) + np.array([1.0, 0.0, 0.0, 0.0])
-        return delta / np.maximum(np.linalg.norm(delta, axis=-1, keepdims=True), 1e-12)
+        cap = self._max_correction
+        return _from_rotvec(cap * np.tanh((w @ x + b).reshape(_J, 3) / cap))
 
     def step(
         self, local_quats: npt.ArrayLike, root_pos: npt.ArrayLike

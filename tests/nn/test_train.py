@@ -136,6 +136,9 @@ def test_loss_weight_overrides_change_training_and_unknown_ones_are_refused(
     with pytest.raises(TrainError, match=r"unknown loss weight.*'bogus'.*allowed: effector"):
         train(dataclasses.replace(cfg, out_dir=str(tmp_path / "c"), loss_weights={"bogus": 1.0}))
     assert not (tmp_path / "c").exists()
+    for bad in (float("nan"), -1.0, "heavy"):
+        with pytest.raises(TrainError, match="finite numbers"):
+            train(dataclasses.replace(cfg, out_dir=str(tmp_path / "d"), loss_weights={"bone": bad}))
 
 
 def test_refuses_to_overwrite_untrainable_models_and_bad_resume(

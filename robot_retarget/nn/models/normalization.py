@@ -15,15 +15,18 @@ class Standardizer(nn.Module):
     """``(x − mean) / std`` over the last axis, with statistics fitted from data.
 
     Starts as the identity (mean 0, std 1); :meth:`fit` sets the statistics from a sample
-    (…, D). The buffers travel with ``state_dict``, so a checkpoint restores them.
+    (…, D). The buffers travel with ``state_dict``, so a checkpoint restores them. ``min_std``
+    floors the fitted spreads: a feature that barely varies in training would otherwise be
+    divided by its tiny spread and make the network hypersensitive to it at run time.
     """
 
     mean: Tensor
     std: Tensor
 
-    def __init__(self, dim: int) -> None:
+    def __init__(self, dim: int, min_std: float | None = None) -> None:
         super().__init__()
         self.dim = dim
+        self.min_std = min_std
         self.register_buffer("mean", torch.zeros(dim))
         self.register_buffer("std", torch.ones(dim))
 
@@ -35,6 +38,8 @@ class Standardizer(nn.Module):
         flat = sample.reshape(-1, self.dim).to(self.mean)
         std = flat.std(dim=0, unbiased=False) if flat.shape[0] > 1 else torch.ones_like(self.std)
         self.mean.copy_(flat.mean(dim=0))
+        if self.min_std is not None:
+            std = std.clamp_min(self.min_std)
         self.std.copy_(torch.where(std < _MIN_STD, torch.ones_like(std), std))
 
     def forward(self, x: Tensor) -> Tensor:

@@ -6,7 +6,7 @@ happens. Our sources *are* rotations (BVH, live rotation streams), so this model
 factorisation and takes q_A from the input instead of regressing it:
 
     q̃_A = D(q_A,t, q_A,t−1 … q_A,t−K)          causal denoiser, per joint
-    Δq  = F_Δ([p̃_A / h_A, 6D(q̃_A), ref_A / h_A, ref_B / h_B])
+    Δq  = exp(c · tanh(F_Δ([p̃_A / h_A, 6D(q̃_A), ref_A / h_A, ref_B / h_B]) / c))
     q_B = q̃_A ⊗ Δq
     v_B = F_v(v_A) · h_B / h_A,   ω_B = ω_A
 
@@ -18,9 +18,12 @@ factorisation and takes q_A from the input instead of regressing it:
   the clean motion on corrupted input (robot_retarget.nn.corruption).
 - F_Δ (an MLP) sees the denoised pose as root-relative positions (FK on the source skeleton)
   and 6D rotations, and both skeletons' rest offsets divided by their heights: the correction
-  depends on proportions, not size.
+  depends on proportions, not size. It outputs a rotation vector whose components are capped
+  at ±c (``max_correction_deg``, 30°), and its inputs are standardised with spread floors, so
+  a pose unlike any in training cannot swing a joint around.
 - The root moves as copy-scaled's (velocity × height ratio), through F_v: a learned causal
-  FIR filter on the velocity whose taps sum to one, so it smooths a jittery root without a
+  FIR filter on the velocity (trained on noisy input against the clean path) whose taps sum to
+  one, so it smooths a jittery root without a
   bias that the integration would turn into drift (a free residual network did exactly that
   in our first runs: 0.2 % of a stride per frame became metres over a long clip). The turning
   rate is copied (a heading drift would turn the whole motion away from the source).
@@ -32,6 +35,8 @@ is causal: :meth:`step` keeps the last K source frames and F_v's last velocities
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -192,6 +197,7 @@ class ResidualWeights:
     offset_std: FloatArray
     correction_layers: tuple[tuple[FloatArray, FloatArray], ...]
     to_delta: tuple[FloatArray, FloatArray]
+    max_correction_rad: float
     root_taps: FloatArray
 
 
@@ -215,6 +221,7 @@ class ResidualRetargeter(RetargetModel):
         denoiser_history: int = 4,
         denoiser_hidden: int = 64,
         root_filter_taps: int = 5,
+        max_correction_deg: float = 30.0,
     ) -> None:
         super().__init__()
         self.hidden_size = hidden_size
@@ -222,11 +229,13 @@ class ResidualRetargeter(RetargetModel):
         self.denoiser_history = denoiser_history
         self.denoiser_hidden = denoiser_hidden
         self.root_filter_taps = root_filter_taps
+        self.max_correction_deg = max_correction_deg
         j = self.num_joints
         self.denoiser = CausalRotationDenoiser(j, denoiser_history, denoiser_hidden)
-        self.pose_norm = Standardizer(3 * j)
-        self.rot_norm = Standardizer(6 * j)
-        self.offset_norm = Standardizer(3 * j)
+        # Spread floors (heights, 6D components, offsets / height): see Standardizer.
+        self.pose_norm = Standardizer(3 * j, min_std=0.05)
+        self.rot_norm = Standardizer(6 * j, min_std=0.05)
+        self.offset_norm = Standardizer(3 * j, min_std=0.01)
         self._pose_dim = 9 * j  # positions and 6D rotations: the per-frame part of the input
         layers: list[nn.Module] = []
         width = self._pose_dim + 6 * j
@@ -234,7 +243,7 @@ class ResidualRetargeter(RetargetModel):
             layers += [nn.Linear(width, hidden_size), nn.ReLU()]
             width = hidden_size
         self.correction = nn.Sequential(*layers)
-        self.to_delta = nn.Linear(hidden_size, 4 * j)
+        self.to_delta = nn.Linear(hidden_size, 3 * j)
         _zero_last(self.to_delta)
         self.root_filter = CausalVelocityFilter(root_filter_taps)
         self._fk = FrameKinematics(self.parents)
@@ -247,6 +256,7 @@ class ResidualRetargeter(RetargetModel):
             "denoiser_history": self.denoiser_history,
             "denoiser_hidden": self.denoiser_hidden,
             "root_filter_taps": self.root_filter_taps,
+            "max_correction_deg": self.max_correction_deg,
         }
 
     def fit_normalization(self, features: MotionFeatures, offsets: Tensor) -> None:
@@ -269,12 +279,25 @@ class ResidualRetargeter(RetargetModel):
             offset_std=_np(self.offset_norm.std),
             correction_layers=_linear_layers(self.correction),
             to_delta=(_np(self.to_delta.weight), _np(self.to_delta.bias)),
+            max_correction_rad=math.radians(self.max_correction_deg),
             root_taps=_np(self.root_filter.weights()),
         )
 
+    # The per-skeleton terms of F_Δ are cached between frames; anything that can change the
+    # weights, their dtype or device drops the cache.
     def train(self, mode: bool = True) -> ResidualRetargeter:
-        self._consts = None  # cached terms of F_Δ go stale once the weights train again
+        self._consts = None
         return super().train(mode)
+
+    def _apply(self, fn: Any, recurse: bool = True) -> ResidualRetargeter:
+        self._consts = None
+        return super()._apply(fn, recurse)  # type: ignore[no-untyped-call]
+
+    def load_state_dict(
+        self, state_dict: Mapping[str, Any], strict: bool = True, assign: bool = False
+    ) -> Any:
+        self._consts = None
+        return super().load_state_dict(state_dict, strict, assign)
 
     # --- shared by the clip and the frame path ---------------------------------------------
 
@@ -324,7 +347,11 @@ class ResidualRetargeter(RetargetModel):
         x = torch.relu(nnf.linear(pose, c.pose_weight) + bias)
         for layer in list(self.correction)[2:]:
             x = layer(x)
-        return qt.normalize(self.to_delta(x).view(*lead, self.num_joints, 4) + _IDENTITY.to(x))
+        # Δq = exp(c · tanh(u / c)): every rotation-vector component stays within ±c, so no
+        # input, however far from the training data, turns a joint by more than √3 · c.
+        cap = math.radians(self.max_correction_deg)
+        u = self.to_delta(x).view(*lead, self.num_joints, 3)
+        return qt.from_rotation_vector(cap * torch.tanh(u / cap))
 
     def _root_velocity(
         self, root_vel: Tensor, filtered_xyz: Tensor, c: _SkeletonConstants
@@ -362,10 +389,6 @@ class ResidualRetargeter(RetargetModel):
         q_b = hamilton(q_den, self._delta(q_den, pos_den, c))
         vel = self._root_velocity(src.root_vel, self.root_filter.step(src.root_vel[..., :3]), c)
         return qt.normalize(q_b), vel
-
-
-with torch.inference_mode(False):
-    _IDENTITY = torch.tensor([1.0, 0.0, 0.0, 0.0])
 
 
 @dataclass(frozen=True)

@@ -16,14 +16,16 @@ Residual (ours, robot_retarget.nn.models.residual): no discriminator. The clean 
 through the model for the geometric losses of robot_retarget.nn.retarget_losses (effectors,
 contacts, bone directions, foot skate), a root-velocity loss against copy-scaled's and PMnet's
 rotation constraint (λ_r = 10, α = 100°); a copy corrupted as in the denoising test goes through
-it for a supervised denoising loss (denoised source pose against the clean one) and a
-consistency loss (its output against the clean input's, the denoising metric). Adam, gradients
+it for a supervised denoising loss (denoised source pose against the clean one, and its root
+path against the clean pass's) and an optional consistency loss (its whole output against the
+clean input's, the denoising metric; off by default). Adam, gradients
 clipped to norm 25.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TypeVar
@@ -326,6 +328,11 @@ def residual_training_step(
     noisy = compute_features(noisy_q, noisy_root, src_off)
     out_noisy = model.retarget_features(noisy, noisy_root[:, 0], src_off, tgt_off)
     denoise = denoising_loss(out_noisy.extras["pos_denoised"], clean.local_pos, src_off)
+    # The root filter learns to smooth a jittery root: the noisy pass's path against the clean
+    # pass's, each relative to its own first frame (its noise cannot be known).
+    path_noisy = out_noisy.root_pos - out_noisy.root_pos[:, :1]
+    path_clean = (out.root_pos - out.root_pos[:, :1]).detach()
+    root_noise = (((path_noisy - path_clean) / h_tgt[:, None, None]) ** 2).sum(-1).mean(-1) * 1e3
     consistency = torch.zeros_like(denoise)
     if w.consistency > 0.0:
         # The denoising metric itself: the output for noisy input against the clean input's.
@@ -338,7 +345,7 @@ def residual_training_step(
         + w.contact * contact
         + w.bone * bone
         + w.skate * skate
-        + w.denoise * denoise
+        + w.denoise * (denoise + root_noise)
         + w.consistency * consistency
         + w.root * root
         + rot
@@ -354,6 +361,7 @@ def residual_training_step(
         "bone": float(bone.detach().mean()),
         "skate": float(skate.detach().mean()),
         "denoise": float(denoise.detach().mean()),
+        "root_noise": float(root_noise.detach().mean()),
         "consistency": float(consistency.detach().mean()),
         "root": float(root.detach().mean()),
         "rotation": float(rot.detach().mean()),
@@ -374,7 +382,14 @@ def loss_weights(defaults: _W, overrides: Mapping[str, float] | None) -> _W:
             f"unknown loss weight(s) {unknown} for {type(defaults).__name__}; "
             f"allowed: {', '.join(allowed)}"
         )
-    return dataclasses.replace(defaults, **overrides)
+    bad = {
+        k: v
+        for k, v in overrides.items()
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0
+    }
+    if bad:
+        raise ValueError(f"loss weights must be finite numbers ≥ 0, got {bad}")
+    return dataclasses.replace(defaults, **{k: float(v) for k, v in overrides.items()})
 
 
 def check_loss_weights(model_name: str, overrides: Mapping[str, float] | None) -> None:

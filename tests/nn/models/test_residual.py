@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import torch
@@ -125,3 +126,53 @@ def test_online_cache_follows_new_weights_after_training(
         model.eval()
         after = model(quats, root, src, tgt).local_quats
     assert float(qt.angle_between(before, after).max()) > 1e-2
+
+
+def test_correction_is_bounded_for_any_input(
+    motion: Motion, skeleton_pair: tuple[torch.Tensor, torch.Tensor]
+) -> None:
+    """However wild the input and the weights, Δq turns no joint by more than √3 × the cap."""
+    model = build_model("residual", hidden_size=16, num_layers=2, max_correction_deg=20.0)
+    with torch.no_grad():
+        for param in model.parameters():
+            param.normal_(0.0, 50.0)  # saturates every unit
+    model.eval()
+    src, tgt = skeleton_pair
+    g = torch.Generator().manual_seed(1)
+    quats = qt.from_rotation_vector(3.0 * torch.randn(2, 10, 22, 3, generator=g))
+    _, root = motion(2, 10)
+    feats = compute_features(quats, root, src)
+    with torch.no_grad():
+        pred = model.retarget(feats, src, tgt)
+    turned = qt.angle_between(pred.extras["q_denoised"], pred.local_quats)
+    assert torch.isfinite(turned).all()
+    assert float(turned.max()) <= math.radians(20.0) * math.sqrt(3.0) + 1e-5
+
+
+def test_cached_skeleton_terms_follow_new_weights_dtype_and_device(
+    tiny_model: Callable[[str], RetargetModel],
+    motion: Motion,
+    skeleton_pair: tuple[torch.Tensor, torch.Tensor],
+) -> None:
+    model = tiny_model("residual").eval()
+    other = tiny_model("residual")
+    with torch.no_grad():
+        for param in other.parameters():
+            param.add_(0.3)
+    src, tgt = skeleton_pair
+    quats, root = motion(2, 6)
+    with torch.no_grad():
+        before = model(quats, root, src, tgt).local_quats
+        model.load_state_dict(other.state_dict())
+        after = model(quats, root, src, tgt).local_quats
+        assert float(qt.angle_between(before, after).max()) > 1e-2
+        doubled = model.double()(quats.double(), root.double(), src.double(), tgt.double())
+    assert doubled.local_quats.dtype == torch.float64
+
+
+def test_standardizer_floor() -> None:
+    from robot_retarget.nn.models.normalization import Standardizer
+
+    norm = Standardizer(2, min_std=0.05)
+    norm.fit(torch.tensor([[0.0, 1.0], [0.001, 3.0]]))
+    torch.testing.assert_close(norm.std, torch.tensor([0.05, 1.0]))
