@@ -13,7 +13,9 @@ and foot_contact), per sample (B,), frames averaged:
   (height-normalised, × 10³ as the metric).
 
 Norms are smoothed at zero (√(x² + ε²) − ε) so their gradients stay finite when the error
-vanishes, e.g. for a target that is its own source.
+vanishes, e.g. for a target that is its own source. Two differences from the metrics, both from
+training on windows: a foot's "lowest point" for contact detection is the window's, not the
+clip's, and a window without contact adds 0 skate (the metric skips such clips as NaN).
 """
 
 from __future__ import annotations
