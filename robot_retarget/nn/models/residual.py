@@ -140,12 +140,18 @@ class CausalRotationDenoiser(nn.Module):
 
 
 class CausalVelocityFilter(nn.Module):
-    """F_v: v_out,t = Σ_k a_k v_t−k over the last ``taps`` frames, with Σ a_k = 1.
+    """F_v: v_out,t = Σ_k a_k v_t−k over the last ``taps`` frames, with Σ a_k = 1 and
+    Σ k·a_k = 0.
 
-    Parametrised as a = e₀ + b − mean(b), so any b keeps the gain at one (no drift) and b = 0
-    (the start) passes the velocity through. Velocities before the first frame are zero (the
-    features' frame-0 velocity is zero too).
+    Unit gain: the integrated path cannot drift. Zero first moment: a steady velocity comes out
+    unchanged, so the root does not lag behind a walking source (a filter free of this
+    constraint learned a 1.6-frame lag). Parametrised as a = e₀ + P b with P the projection
+    orthogonal to (1, …, 1) and (0, 1, …, K − 1), so any b keeps both, and b = 0 (the start)
+    passes the velocity through. Needs 3 taps or more to smooth at all. Velocities before the
+    first frame are zero (the features' frame-0 velocity is zero too).
     """
+
+    projection: Tensor
 
     def __init__(self, taps: int = 5) -> None:
         super().__init__()
@@ -153,12 +159,21 @@ class CausalVelocityFilter(nn.Module):
             raise ValueError(f"the root filter needs at least 1 tap, got {taps}")
         self.taps = taps
         self.b = nn.Parameter(torch.zeros(taps))
+        k = torch.arange(taps, dtype=torch.float32)
+        basis = [torch.ones(taps)]
+        if taps > 1:
+            basis.append(k - k.mean())
+        proj = torch.eye(taps)
+        for u in basis:
+            u = u / torch.linalg.vector_norm(u)
+            proj = proj - u[:, None] * u[None, :]
+        self.register_buffer("projection", proj, persistent=False)
         self._past: Tensor | None = None
 
     def weights(self) -> Tensor:
-        """The taps a (taps,), a₀ for the current frame; they sum to one."""
+        """The taps a (taps,), a₀ for the current frame: Σ a = 1, Σ k·a_k = 0."""
         e0 = nnf.one_hot(torch.tensor(0), self.taps).to(self.b)
-        return e0 + self.b - self.b.mean()
+        return e0 + self.projection.to(self.b) @ self.b
 
     def forward(self, v: Tensor) -> Tensor:
         """Filtered velocities (B, T, C)."""

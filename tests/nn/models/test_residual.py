@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import pytest
 import torch
 
 from robot_retarget.nn import quaternion_torch as qt
@@ -176,3 +177,23 @@ def test_standardizer_floor() -> None:
     norm = Standardizer(2, min_std=0.05)
     norm.fit(torch.tensor([[0.0, 1.0], [0.001, 3.0]]))
     torch.testing.assert_close(norm.std, torch.tensor([0.05, 1.0]))
+
+
+def test_root_filter_keeps_gain_and_has_no_lag() -> None:
+    """Any parameters: unit gain (no drift) and zero first moment (a steady walk is passed
+    through unchanged, no lag)."""
+    from robot_retarget.nn.models.residual import CausalVelocityFilter
+
+    filt = CausalVelocityFilter(5)
+    with torch.no_grad():
+        filt.b.normal_(0.0, 1.0)
+    a = filt.weights().detach()
+    assert float(a.sum()) == pytest.approx(1.0, abs=1e-6)
+    assert float((torch.arange(5.0) * a).sum()) == pytest.approx(0.0, abs=1e-5)
+    ramp = torch.linspace(0.0, 1.0, 20)[None, :, None].repeat(2, 1, 3)  # accelerating root
+    steady = torch.full((1, 20, 3), 0.04)
+    with torch.no_grad():
+        out = filt(steady)
+        torch.testing.assert_close(out[:, 4:], steady[:, 4:])
+        ramp_out = filt(ramp)
+    torch.testing.assert_close(ramp_out[:, 4:], ramp[:, 4:], atol=1e-5, rtol=0)
