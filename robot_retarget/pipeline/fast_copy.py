@@ -121,15 +121,19 @@ def online_retargeter(
     source_offsets: npt.ArrayLike,
     target_offsets: npt.ArrayLike,
 ) -> OnlineStep:
-    """The live network step for ``model``: the numpy twins for the copy baselines and the
-    residual model (robot_retarget.pipeline.fast_residual), else :class:`OnlineRetargeter`
-    (torch)."""
+    """The live network step for ``model``: the numpy twins for the copy baselines, the
+    residual model and PMnet (pipeline.fast_residual, pipeline.fast_pmnet), else
+    :class:`OnlineRetargeter` (torch)."""
+    from robot_retarget.nn.models.pmnet import PMnet
     from robot_retarget.nn.models.residual import ResidualRetargeter
+    from robot_retarget.pipeline.fast_pmnet import FastPMnetRetargeter
     from robot_retarget.pipeline.fast_residual import FastResidualRetargeter
 
     net = model.model if isinstance(model, LoadedModel) else model
     if type(net) is ResidualRetargeter:
         return FastResidualRetargeter(net, source_offsets, target_offsets)
+    if type(net) is PMnet and net.causal_movement:
+        return FastPMnetRetargeter(net, source_offsets, target_offsets)
     if not is_copy_baseline(model):
         return OnlineRetargeter(model, source_offsets, target_offsets)
     scale = 1.0

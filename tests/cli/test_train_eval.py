@@ -89,6 +89,7 @@ def test_train_eval_resume(mocap: Path, tmp_path: Path, capsys: pytest.CaptureFi
     records = benchmark.run(args)
     assert [(r["mode"], r["weights"]) for r in records] == [
         ("online", "trained"),
+        ("online-numpy", "trained"),  # a trained PMnet: the live pipeline's numpy step too
         ("clip", "trained"),
     ]
     assert all(r["median_ms"] > 0 and r["p99_ms"] >= r["median_ms"] for r in records)
@@ -119,4 +120,4 @@ def test_bench_defaults_cover_copy_nkn_pmnet_residual() -> None:
     assert {"model", "mode", "frames", "median_ms", "p99_ms"} <= set(records[0])
     # The live pipeline's numpy steps are timed next to the torch ones, in the same run.
     numpy_rows = {r["model"] for r in records if r["mode"] == "online-numpy"}
-    assert numpy_rows == {"copy", "residual"}
+    assert numpy_rows == {"copy", "pmnet", "residual"}

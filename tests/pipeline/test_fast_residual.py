@@ -104,7 +104,8 @@ def test_rotation_vectors_agree_with_the_geometry_module(
     rotvecs: np.ndarray, shrink: float
 ) -> None:
     """The fast shortest-arc log, for large, tiny and zero rotations and both signs of q."""
-    from robot_retarget.pipeline.fast_residual import _from_rotvec, _rotvec
+    from robot_retarget.pipeline.numpy_frame import from_rotvec as _from_rotvec
+    from robot_retarget.pipeline.numpy_frame import rotvec as _rotvec
 
     for r in (rotvecs, rotvecs * shrink, np.zeros((2, 3))):
         q = quat.from_rotation_vector(r)

@@ -25,6 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
 import torch
 from torch import nn
 from torch.nn import functional as nnf
@@ -41,6 +43,7 @@ from robot_retarget.nn.models.base import Prediction, RetargetModel
 from robot_retarget.nn.models.normalization import Standardizer
 
 Tensor = torch.Tensor
+FloatArray = npt.NDArray[np.float64]
 
 _QUAT_INIT_SCALE = 1e-2
 
@@ -181,6 +184,23 @@ class PMnet(RetargetModel):
         vel_b = self._movement_out(self.movement(nv_a), tgt_offsets)
         return Prediction(local_quats=q_b, root_vel=vel_b, extras={"q_a": q_a, "phi_a": phi_a})
 
+    @torch.no_grad()
+    def export_weights(self) -> PMnetWeights:
+        """The parameters as numpy arrays (see :class:`PMnetWeights`)."""
+        return PMnetWeights(
+            pose_mean=_np(self.pose_norm.mean),
+            pose_std=_np(self.pose_norm.std),
+            offset_mean=_np(self.offset_norm.mean),
+            offset_std=_np(self.offset_norm.std),
+            movement_mean=_np(self.movement_norm.mean),
+            movement_std=_np(self.movement_norm.std),
+            encoder_layers=tuple(_pair(m) for m in self.pose_encoder if isinstance(m, nn.Linear)),
+            to_quat=_pair(self.to_quat),
+            to_delta=_pair(self.to_delta),
+            conv1=_pair(self.movement.conv1),
+            conv2=_pair(self.movement.conv2),
+        )
+
     def reset_state(self) -> None:
         self.movement.reset()
         self._frame_consts = None
@@ -215,6 +235,34 @@ class PMnet(RetargetModel):
         nv_a = self.movement_norm(normalize_movement(src.root_vel, c.scale_src))
         nv_b = self.movement_norm.inverse(self.movement.step(nv_a))
         return q_b, denormalize_movement(nv_b, c.scale_tgt)
+
+
+@dataclass(frozen=True)
+class PMnetWeights:
+    """A PMnet's parameters as float64 numpy arrays, for the numpy twin of its online step
+    (robot_retarget.pipeline.fast_pmnet); Linear layers as (weight, bias), convolutions as
+    (weight (out, in, k), bias)."""
+
+    pose_mean: FloatArray
+    pose_std: FloatArray
+    offset_mean: FloatArray
+    offset_std: FloatArray
+    movement_mean: FloatArray
+    movement_std: FloatArray
+    encoder_layers: tuple[tuple[FloatArray, FloatArray], ...]
+    to_quat: tuple[FloatArray, FloatArray]
+    to_delta: tuple[FloatArray, FloatArray]
+    conv1: tuple[FloatArray, FloatArray]
+    conv2: tuple[FloatArray, FloatArray]
+
+
+def _np(t: Tensor) -> FloatArray:
+    return np.asarray(t.detach().cpu().double().numpy(), dtype=np.float64)
+
+
+def _pair(layer: nn.Linear | nn.Conv1d) -> tuple[FloatArray, FloatArray]:
+    assert layer.bias is not None
+    return _np(layer.weight), _np(layer.bias)
 
 
 @dataclass(frozen=True)

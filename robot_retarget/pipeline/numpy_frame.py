@@ -1,0 +1,173 @@
+"""numpy building blocks of the live pipeline's per-frame network steps (no torch).
+
+A network's online step works on one frame of a few hundred numbers, where torch spends nearly
+all its time dispatching ops. The numpy twins of the models' steps (fast_residual, fast_pmnet)
+share what this module holds:
+
+- quaternion products, logs and exponentials and rotation matrices written as few array ops
+  (tables from robot_retarget.geometry.quaternion_tables);
+- :class:`TreeKinematics`: root-relative joint positions by pointer jumping, as the torch
+  ``FrameKinematics``;
+- :class:`FrameStream`: the numpy ``FeatureStream`` — heading removal, heading-frame root
+  velocity and turning rate of each source frame, integration of the predicted root
+  velocity from the source's first position and heading, and the heading put back on the
+  output root rotation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.geometry.quaternion_tables import matrix_table, product_table
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
+from robot_retarget.skeleton.tree_tables import ancestor_matrix, pointer_jumps
+
+FloatArray = npt.NDArray[np.float64]
+
+NUM_JOINTS = len(CANONICAL_JOINTS)
+_TWO_PI = 2.0 * math.pi
+
+
+_HAMILTON = product_table()
+
+
+def qmul(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Hamilton product of same-shaped quaternion arrays (…, 4): one outer product, one matmul
+    (per-call overhead is what costs at this size)."""
+    outer = (a[..., :, None] * b[..., None, :]).reshape(*a.shape[:-1], 16)
+    return np.asarray(outer @ _HAMILTON, dtype=np.float64)
+
+
+def left_matrices(q: FloatArray) -> FloatArray:
+    """(…, 4, 4) matrices L(q) with q ⊗ p = L(q) p."""
+    return np.asarray(q @ _LEFT, dtype=np.float64).reshape(*q.shape[:-1], 4, 4)
+
+
+# H[i, k, o]: the coefficient of a_i b_k in output o, so L(a)[o, k] = Σ_i a_i H[i, k, o].
+_LEFT = np.einsum("iko->iok", _HAMILTON.reshape(4, 4, 4)).reshape(4, 16)
+
+
+_MATRIX = matrix_table()
+
+
+def matrices(q: FloatArray) -> FloatArray:
+    """Rotation matrices (J, 3, 3) of unit quaternions (J, 4)."""
+    outer = (q[:, :, None] * q[:, None, :]).reshape(-1, 16)
+    return np.asarray(outer @ _MATRIX, dtype=np.float64).reshape(-1, 3, 3)
+
+
+def rotvec(q: FloatArray) -> FloatArray:
+    """Rotation vectors (…, 3) of unit quaternions (…, 4), shortest arc.
+
+    2·atan2(s, |w|)/s stays exact for tiny s (atan2 does not lose the ratio) and gives 0 at
+    s = 0, so no series branch is needed (geometry.quaternion.to_rotation_vector agrees, tested).
+    """
+    w = q[..., :1]
+    v = q[..., 1:] * np.where(w < 0.0, -1.0, 1.0)
+    s = np.sqrt(np.sum(v * v, axis=-1, keepdims=True))
+    return np.asarray(2.0 * np.arctan2(s, np.abs(w)) / np.maximum(s, 1e-300) * v)
+
+
+def from_rotvec(r: FloatArray) -> FloatArray:
+    """Unit quaternions (…, 4) of rotation vectors (…, 3)."""
+    angle = np.sqrt(np.sum(r * r, axis=-1, keepdims=True))
+    # sin(a/2)/a = ½·sinc(a/2π): exact and smooth at zero.
+    return np.concatenate([np.cos(0.5 * angle), 0.5 * np.sinc(angle / (2 * np.pi)) * r], axis=-1)
+
+
+class TreeKinematics:
+    """Root-relative joint positions of one frame by pointer jumping (FrameKinematics' scheme)."""
+
+    def __init__(self, parents: tuple[int, ...]) -> None:
+        jumps = pointer_jumps(parents)
+        self._jumps = [np.array(a) for a in jumps]
+        self._parent = np.array(jumps[0][: len(parents)])
+        self._chain = ancestor_matrix(parents)
+
+    def positions(self, rot: FloatArray, offsets: FloatArray) -> FloatArray:
+        """Positions (J, 3) from local rotation matrices (J, 3, 3) and rest offsets (J, 3)."""
+        glob = np.concatenate([rot, np.eye(3)[None]], axis=0)
+        for anc in self._jumps:
+            glob = glob[anc] @ glob
+        bones = np.einsum("jab,jb->ja", glob[self._parent], offsets)
+        return np.asarray(self._chain @ bones, dtype=np.float64)
+
+
+def check_frame(
+    local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """A frame as float64 copies, with OnlineRetargeter's shape errors."""
+    q = np.array(local_quats, dtype=np.float64)
+    root = np.array(root_pos, dtype=np.float64)
+    if q.shape != (NUM_JOINTS, 4):
+        raise ValueError(f"local_quats must have shape {(NUM_JOINTS, 4)}, got {q.shape}")
+    if root.shape != (3,):
+        raise ValueError(f"root_pos must have shape (3,), got {root.shape}")
+    return q, root
+
+
+def check_offsets(name: str, offsets: npt.ArrayLike) -> FloatArray:
+    a = np.asarray(offsets, dtype=np.float64)
+    if a.shape != (NUM_JOINTS, 3):
+        raise ValueError(f"{name} must have shape {(NUM_JOINTS, 3)}, got {a.shape}")
+    return a
+
+
+class FrameStream:
+    """The numpy ``FeatureStream`` (see the module docstring); :meth:`reset` before a new
+    sequence."""
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        self._prev: tuple[float, float, float, float] | None = None  # source x, y, z, yaw
+        self._out: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+        self._first = True
+
+    def push(self, q: FloatArray, root: FloatArray) -> tuple[FloatArray, float]:
+        """Remove the heading from ``q``'s root entry in place; returns the heading-frame root
+        velocity (3,) and the turning rate (rad/frame), both zero on the first frame."""
+        w, x, y, z = q[0].tolist()
+        px, py, pz = root.tolist()
+        # Heading of the root's +X column, as FeatureStream.
+        yaw = math.atan2(-2.0 * (x * z - w * y), w * w + x * x - y * y - z * z)
+        c, s = math.cos(-0.5 * yaw), math.sin(-0.5 * yaw)
+        q[0] = (c * w - s * y, c * x + s * z, c * y + s * w, c * z - s * x)
+        prev = self._prev
+        self._prev = (px, py, pz, yaw)
+        if prev is None:
+            self._out = (px, py, pz, yaw)
+            return np.zeros(3), 0.0
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy, dz = px - prev[0], py - prev[1], pz - prev[2]
+        d = yaw - prev[3]
+        return np.array((c * dx - s * dz, dy, s * dx + c * dz)), math.pi - (math.pi - d) % _TWO_PI
+
+    def integrate(self, vel: FloatArray, dyaw: float) -> tuple[FloatArray, float]:
+        """The target's root position (3,) and heading after one predicted velocity; the
+        first frame's velocity is ignored (the output starts at the source's root)."""
+        if self._first:
+            self._first = False
+        else:
+            vx, vy, vz = vel.tolist()
+            out_yaw = self._out[3] + dyaw
+            c, s = math.cos(out_yaw), math.sin(out_yaw)
+            self._out = (
+                self._out[0] + (c * vx + s * vz),
+                self._out[1] + vy,
+                self._out[2] + (c * vz - s * vx),
+                out_yaw,
+            )
+        return np.array(self._out[:3]), self._out[3]
+
+    @staticmethod
+    def apply_heading(q: FloatArray, yaw: float) -> FloatArray:
+        """Put the heading ``yaw`` back on the root entry of heading-free rotations, in place."""
+        fw, fx, fy, fz = q[0].tolist()
+        c, s = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+        q[0] = (c * fw - s * fy, c * fx + s * fz, c * fy + s * fw, c * fz - s * fx)
+        return q
