@@ -23,6 +23,7 @@ from robot_retarget.pipeline.numpy_frame import (
     TreeKinematics,
     check_frame,
     check_offsets,
+    f32_layer,
     from_rotvec,
     left_matrices,
     matrices,
@@ -70,15 +71,16 @@ class FastResidualRetargeter:
         std = np.concatenate([w.pose_std, w.rot_std])
         scale = np.concatenate([np.full(3 * _J, 1.0 / h_src), np.ones(6 * _J)])
         w_pose = w0[:, :pose_dim] / std
-        self._first_weight = w_pose * scale
-        self._first_bias = (
+        first_bias = (
             b0
             + w0[:, pose_dim : pose_dim + k] @ ref_a
             + w0[:, pose_dim + k :] @ ref_b
             - w_pose @ mean
         )
-        self._hidden = w.correction_layers[1:]
-        self._to_delta = w.to_delta
+        # The correction MLP runs in float32, as the torch model does (faster matrix products).
+        self._first = f32_layer((w_pose * scale, first_bias))
+        self._hidden = [f32_layer(layer) for layer in w.correction_layers[1:]]
+        self._to_delta = f32_layer(w.to_delta)
         self._max_correction = w.max_correction_rad
         self._root_taps = w.root_taps
         self.reset()
@@ -118,13 +120,15 @@ class FastResidualRetargeter:
         rot = matrices(q)
         pos = self._kin.positions(rot, self._src)
         six = rot[:, :, :2].transpose(0, 2, 1)  # per joint: column 0, then column 1 (6D)
-        x = np.concatenate([pos.reshape(-1), six.reshape(-1)])
-        x = np.maximum(self._first_weight @ x + self._first_bias, 0.0)
+        x = np.concatenate([pos.reshape(-1), six.reshape(-1)]).astype(np.float32)
+        w, b = self._first
+        x = np.maximum(w @ x + b, 0.0)
         for w, b in self._hidden:
             x = np.maximum(w @ x + b, 0.0)
         w, b = self._to_delta
         cap = self._max_correction
-        return from_rotvec(cap * np.tanh((w @ x + b).reshape(_J, 3) / cap))
+        u = (w @ x + b).astype(np.float64).reshape(_J, 3)
+        return from_rotvec(cap * np.tanh(u / cap))
 
     def step(
         self, local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
