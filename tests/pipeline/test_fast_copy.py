@@ -23,6 +23,7 @@ from robot_retarget.pipeline.fast_copy import (
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
+from tests.pipeline.stream_equality import assert_same_stream
 
 TOL = 1e-12
 BASELINES = ("copy", "copy-scaled")
@@ -31,18 +32,7 @@ BASELINES = ("copy", "copy-scaled")
 def _assert_same_stream(
     model: LoadedModel, src: np.ndarray, tgt: np.ndarray, quats: np.ndarray, root: np.ndarray
 ) -> None:
-    """Both paths over the same frames, twice (reset in between), output for output."""
-    torch_step = OnlineRetargeter(model, src, tgt)
-    fast = online_retargeter(model, src, tgt)
-    assert isinstance(fast, FastCopyRetargeter)
-    for _ in range(2):
-        torch_step.reset()
-        fast.reset()
-        for t in range(len(quats)):
-            want_q, want_p = torch_step.step(quats[t], root[t])
-            got_q, got_p = fast.step(quats[t], root[t])
-            np.testing.assert_allclose(got_q, want_q, rtol=0, atol=TOL)
-            np.testing.assert_allclose(got_p, want_p, rtol=0, atol=TOL)
+    assert_same_stream(model, src, tgt, quats, root, FastCopyRetargeter, TOL)
 
 
 @pytest.mark.parametrize("name", BASELINES)

@@ -18,6 +18,7 @@ from robot_retarget.pipeline.fast_pmnet import FastPMnetRetargeter
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
+from tests.pipeline.stream_equality import assert_same_stream
 
 TOL = 2e-5
 
@@ -39,18 +40,7 @@ def _pmnet(seed: int = 0, causal: bool = True) -> LoadedModel:
 def _assert_same_stream(
     model: LoadedModel, src: np.ndarray, tgt: np.ndarray, quats: np.ndarray, root: np.ndarray
 ) -> None:
-    torch_step = OnlineRetargeter(model, src, tgt)
-    fast = online_retargeter(model, src, tgt)
-    assert isinstance(fast, FastPMnetRetargeter)
-    for _ in range(2):
-        torch_step.reset()
-        fast.reset()
-        for t in range(len(quats)):
-            want_q, want_p = torch_step.step(quats[t], root[t])
-            got_q, got_p = fast.step(quats[t], root[t])
-            same_sign = np.sign(np.sum(got_q * want_q, axis=-1, keepdims=True))
-            np.testing.assert_allclose(got_q * same_sign, want_q, rtol=0, atol=TOL)
-            np.testing.assert_allclose(got_p, want_p, rtol=0, atol=TOL)
+    assert_same_stream(model, src, tgt, quats, root, FastPMnetRetargeter, TOL)
 
 
 def test_equals_the_torch_model_on_the_demo(demo: HumanMotion, op3: RobotConfig) -> None:

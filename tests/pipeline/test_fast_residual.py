@@ -11,7 +11,7 @@ from hypothesis.extra.numpy import arrays
 
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion
-from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
+from robot_retarget.nn.inference import LoadedModel
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.nn.models.residual import ResidualRetargeter
 from robot_retarget.pipeline.fast_copy import online_retargeter
@@ -19,6 +19,7 @@ from robot_retarget.pipeline.fast_residual import FastResidualRetargeter
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
+from tests.pipeline.stream_equality import assert_same_stream
 
 # float32 torch against float64 numpy; outputs are unit quaternions and metres.
 TOL = 2e-5
@@ -42,18 +43,7 @@ def _trained_like(seed: int = 0) -> LoadedModel:
 def _assert_same_stream(
     model: LoadedModel, src: np.ndarray, tgt: np.ndarray, quats: np.ndarray, root: np.ndarray
 ) -> None:
-    torch_step = OnlineRetargeter(model, src, tgt)
-    fast = online_retargeter(model, src, tgt)
-    assert isinstance(fast, FastResidualRetargeter)
-    for _ in range(2):  # reset restores every buffer
-        torch_step.reset()
-        fast.reset()
-        for t in range(len(quats)):
-            want_q, want_p = torch_step.step(quats[t], root[t])
-            got_q, got_p = fast.step(quats[t], root[t])
-            same_sign = np.sign(np.sum(got_q * want_q, axis=-1, keepdims=True))
-            np.testing.assert_allclose(got_q * same_sign, want_q, rtol=0, atol=TOL)
-            np.testing.assert_allclose(got_p, want_p, rtol=0, atol=TOL)
+    assert_same_stream(model, src, tgt, quats, root, FastResidualRetargeter, TOL)
 
 
 def test_equals_the_torch_model_on_the_demo(demo: HumanMotion, op3: RobotConfig) -> None:
