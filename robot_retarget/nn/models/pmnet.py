@@ -41,6 +41,7 @@ from robot_retarget.nn.features import (
 )
 from robot_retarget.nn.models.base import Prediction, RetargetModel
 from robot_retarget.nn.models.normalization import Standardizer
+from robot_retarget.nn.models.weight_export import layer_pair, linear_pairs, to_numpy
 
 Tensor = torch.Tensor
 FloatArray = npt.NDArray[np.float64]
@@ -188,17 +189,17 @@ class PMnet(RetargetModel):
     def export_weights(self) -> PMnetWeights:
         """The parameters as numpy arrays (see :class:`PMnetWeights`)."""
         return PMnetWeights(
-            pose_mean=_np(self.pose_norm.mean),
-            pose_std=_np(self.pose_norm.std),
-            offset_mean=_np(self.offset_norm.mean),
-            offset_std=_np(self.offset_norm.std),
-            movement_mean=_np(self.movement_norm.mean),
-            movement_std=_np(self.movement_norm.std),
-            encoder_layers=tuple(_pair(m) for m in self.pose_encoder if isinstance(m, nn.Linear)),
-            to_quat=_pair(self.to_quat),
-            to_delta=_pair(self.to_delta),
-            conv1=_pair(self.movement.conv1),
-            conv2=_pair(self.movement.conv2),
+            pose_mean=to_numpy(self.pose_norm.mean),
+            pose_std=to_numpy(self.pose_norm.std),
+            offset_mean=to_numpy(self.offset_norm.mean),
+            offset_std=to_numpy(self.offset_norm.std),
+            movement_mean=to_numpy(self.movement_norm.mean),
+            movement_std=to_numpy(self.movement_norm.std),
+            encoder_layers=linear_pairs(self.pose_encoder),
+            to_quat=layer_pair(self.to_quat),
+            to_delta=layer_pair(self.to_delta),
+            conv1=layer_pair(self.movement.conv1),
+            conv2=layer_pair(self.movement.conv2),
         )
 
     def reset_state(self) -> None:
@@ -254,15 +255,6 @@ class PMnetWeights:
     to_delta: tuple[FloatArray, FloatArray]
     conv1: tuple[FloatArray, FloatArray]
     conv2: tuple[FloatArray, FloatArray]
-
-
-def _np(t: Tensor) -> FloatArray:
-    return np.asarray(t.detach().cpu().double().numpy(), dtype=np.float64)
-
-
-def _pair(layer: nn.Linear | nn.Conv1d) -> tuple[FloatArray, FloatArray]:
-    assert layer.bias is not None
-    return _np(layer.weight), _np(layer.bias)
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,7 @@ from robot_retarget.nn.features import (
 from robot_retarget.nn.models.base import Prediction, RetargetModel
 from robot_retarget.nn.models.normalization import Standardizer
 from robot_retarget.nn.models.pmnet import hamilton
+from robot_retarget.nn.models.weight_export import layer_pair, linear_pairs, to_numpy
 
 Tensor = torch.Tensor
 FloatArray = npt.NDArray[np.float64]
@@ -216,14 +217,6 @@ class ResidualWeights:
     root_taps: FloatArray
 
 
-def _np(t: Tensor) -> FloatArray:
-    return np.asarray(t.detach().cpu().double().numpy(), dtype=np.float64)
-
-
-def _linear_layers(seq: nn.Module) -> tuple[tuple[FloatArray, FloatArray], ...]:
-    return tuple((_np(m.weight), _np(m.bias)) for m in seq.modules() if isinstance(m, nn.Linear))
-
-
 class ResidualRetargeter(RetargetModel):
     """Copy-scaled plus a learned denoiser and pose correction (see the module docstring)."""
 
@@ -284,18 +277,18 @@ class ResidualRetargeter(RetargetModel):
     def export_weights(self) -> ResidualWeights:
         """The parameters as numpy arrays (see :class:`ResidualWeights`)."""
         return ResidualWeights(
-            denoiser_layers=_linear_layers(self.denoiser.net),
+            denoiser_layers=linear_pairs(self.denoiser.net),
             denoiser_history=self.denoiser.history,
-            pose_mean=_np(self.pose_norm.mean),
-            pose_std=_np(self.pose_norm.std),
-            rot_mean=_np(self.rot_norm.mean),
-            rot_std=_np(self.rot_norm.std),
-            offset_mean=_np(self.offset_norm.mean),
-            offset_std=_np(self.offset_norm.std),
-            correction_layers=_linear_layers(self.correction),
-            to_delta=(_np(self.to_delta.weight), _np(self.to_delta.bias)),
+            pose_mean=to_numpy(self.pose_norm.mean),
+            pose_std=to_numpy(self.pose_norm.std),
+            rot_mean=to_numpy(self.rot_norm.mean),
+            rot_std=to_numpy(self.rot_norm.std),
+            offset_mean=to_numpy(self.offset_norm.mean),
+            offset_std=to_numpy(self.offset_norm.std),
+            correction_layers=linear_pairs(self.correction),
+            to_delta=layer_pair(self.to_delta),
             max_correction_rad=math.radians(self.max_correction_deg),
-            root_taps=_np(self.root_filter.weights()),
+            root_taps=to_numpy(self.root_filter.weights()),
         )
 
     # The per-skeleton terms of F_Δ are cached between frames; anything that can change the
