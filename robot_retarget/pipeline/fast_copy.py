@@ -2,16 +2,15 @@
 
 The ``copy`` and ``copy-scaled`` models (:mod:`robot_retarget.nn.models.copy`) only pass the
 rotations through and re-integrate the root; running them through torch costs ~0.35 ms per
-frame in tensor-op overhead. :class:`FastCopyRetargeter` does the same arithmetic on Python
-floats, step for step as ``RetargetModel.step`` with its ``FeatureStream`` (heading from the
-root's +X column, heading-free root velocity, optional height-ratio scaling, integration from
-the source's first root position and heading, heading put back on the root rotation), so its
+frame in tensor-op overhead. :class:`FastCopyRetargeter` does the same arithmetic with the numpy
+``FeatureStream`` (robot_retarget.pipeline.numpy_frame.FrameStream: heading from the root's +X
+column, heading-free root velocity, then optional height-ratio scaling, integration from the
+source's first root position and heading, heading put back on the root rotation), so its
 output equals :class:`robot_retarget.nn.inference.OnlineRetargeter`'s to rounding (tested).
 """
 
 from __future__ import annotations
 
-import math
 from typing import Protocol
 
 import numpy as np
@@ -20,13 +19,11 @@ import numpy.typing as npt
 from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.copy import CopyModel, CopyScaledModel
+from robot_retarget.pipeline.numpy_frame import FrameStream, check_frame, check_offsets
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 from robot_retarget.skeleton.skeleton import Skeleton
 
 FloatArray = npt.NDArray[np.float64]
-
-_J = len(CANONICAL_JOINTS)
-_TWO_PI = 2.0 * math.pi
 
 
 class OnlineStep(Protocol):
@@ -45,12 +42,6 @@ def rest_height_m(offsets: FloatArray) -> float:
     return float(pos[:, 1].max() - pos[:, 1].min())
 
 
-def _check(name: str, a: FloatArray, shape: tuple[int, ...]) -> None:
-    # Same error as OnlineRetargeter, so callers see one behaviour whichever path runs.
-    if a.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
-
-
 class FastCopyRetargeter:
     """Online ``copy`` / ``copy-scaled`` on numpy: ``step`` (22, 4), (3,) → (22, 4), (3,).
 
@@ -61,53 +52,24 @@ class FastCopyRetargeter:
     def __init__(
         self, source_offsets: npt.ArrayLike, target_offsets: npt.ArrayLike, velocity_scale: float
     ) -> None:
-        src = np.asarray(source_offsets, dtype=np.float64)
-        tgt = np.asarray(target_offsets, dtype=np.float64)
-        _check("source_offsets", src, (_J, 3))
-        _check("target_offsets", tgt, (_J, 3))
+        # Same errors as OnlineRetargeter, so callers see one behaviour whichever path runs.
+        check_offsets("source_offsets", source_offsets)
+        check_offsets("target_offsets", target_offsets)
         self.velocity_scale = float(velocity_scale)
-        self.reset()
+        self._stream = FrameStream()
 
     def reset(self) -> None:
         """Start a new sequence: the next :meth:`step` is frame 0."""
-        self._prev: tuple[float, float, float, float] | None = None  # x, y, z, yaw
-        self._out: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+        self._stream.reset()
 
     def step(
         self, local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
     ) -> tuple[FloatArray, FloatArray]:
-        """One frame: (22, 4), (3,) → target rotations (22, 4) and root position (3,)."""
-        q = np.array(local_quats, dtype=np.float64)  # a copy: the root entry is rewritten
-        root = np.asarray(root_pos, dtype=np.float64)
-        _check("local_quats", q, (_J, 4))
-        _check("root_pos", root, (3,))
-        w, x, y, z = q[0].tolist()
-        px, py, pz = root.tolist()
-        # Heading of the root's +X column (FrameKinematics' quadratic form), as FeatureStream.
-        yaw = math.atan2(-2.0 * (x * z - w * y), w * w + x * x - y * y - z * z)
-        prev = self._prev
-        self._prev = (px, py, pz, yaw)
-        if prev is None:  # frame 0: the output starts at the source's root and heading
-            self._out = (px, py, pz, yaw)
-            out_x, out_y, out_z, out_yaw = self._out
-        else:
-            c, s = math.cos(yaw), math.sin(yaw)
-            dx, dy, dz = px - prev[0], py - prev[1], pz - prev[2]
-            k = self.velocity_scale
-            vx, vy, vz = (c * dx - s * dz) * k, dy * k, (s * dx + c * dz) * k
-            d = yaw - prev[3]
-            out_yaw = self._out[3] + (math.pi - (math.pi - d) % _TWO_PI)
-            c, s = math.cos(out_yaw), math.sin(out_yaw)
-            out_x = self._out[0] + (c * vx + s * vz)
-            out_y = self._out[1] + vy
-            out_z = self._out[2] + (c * vz - s * vx)
-            self._out = (out_x, out_y, out_z, out_yaw)
-        # Root rotation: heading removed (yaw_mul(−yaw)), then the output heading put back.
-        c, s = math.cos(-0.5 * yaw), math.sin(-0.5 * yaw)
-        fw, fx, fy, fz = c * w - s * y, c * x + s * z, c * y + s * w, c * z - s * x
-        c, s = math.cos(0.5 * out_yaw), math.sin(0.5 * out_yaw)
-        q[0] = (c * fw - s * fy, c * fx + s * fz, c * fy + s * fw, c * fz - s * fx)
-        return q, np.array((out_x, out_y, out_z))
+        """One frame: (22, 4), (3,) → (22, 4), (3,): rotations copied, root re-integrated."""
+        q, root = check_frame(local_quats, root_pos)  # a copy: the root entry is rewritten
+        vel, dyaw = self._stream.push(q, root)  # q's root is heading-free from here
+        out_pos, out_yaw = self._stream.integrate(vel * self.velocity_scale, dyaw)
+        return self._stream.apply_heading(q, out_yaw), out_pos
 
 
 def is_copy_baseline(model: LoadedModel | RetargetModel) -> bool:
@@ -138,9 +100,7 @@ def online_retargeter(
         return OnlineRetargeter(model, source_offsets, target_offsets)
     scale = 1.0
     if type(net) is CopyScaledModel:
-        src = np.asarray(source_offsets, dtype=np.float64)
-        tgt = np.asarray(target_offsets, dtype=np.float64)
-        _check("source_offsets", src, (_J, 3))
-        _check("target_offsets", tgt, (_J, 3))
+        src = check_offsets("source_offsets", source_offsets)
+        tgt = check_offsets("target_offsets", target_offsets)
         scale = rest_height_m(tgt) / rest_height_m(src)
     return FastCopyRetargeter(source_offsets, target_offsets, scale)
