@@ -47,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.pipeline.loop import ControlLoop, LoopSettings, Mode
     from robot_retarget.pipeline.robot_bvh import write_robot_bvh
     from robot_retarget.pipeline.sim_bus import SimulatedRobotBus
+    from robot_retarget.pipeline.start_ramp import peak_speed_fraction
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.render.preview import check_preview_path, render_preview
     from robot_retarget.robot.loader import load_robot_config
@@ -111,12 +112,13 @@ def run(args: argparse.Namespace) -> int:
         torque = sim.torque_on()
         packets = sim.packets()
     log = result.log
+    q_start = config.safe_pose if result.start_q is None else result.start_q
     streamed = np.array([e.q for e in log]) if log else np.zeros((0, config.num_joints))
     if log:
         RobotTrajectory(config.joint_names, streamed, rate).write(stream_path, overwrite=True)
 
     # 3. checks
-    limits = check_limits(config, streamed, 1.0 / rate, q_start=config.safe_pose)
+    limits = check_limits(config, streamed, 1.0 / rate, q_start=q_start)
     tracking = [e for e in log if e.mode is Mode.TRACKING]
     offline_q = offline.trajectory.q
     errors = []
@@ -128,6 +130,11 @@ def run(args: argparse.Namespace) -> int:
         near = offline_q[max(k - _TRACK_WINDOW, 0) : k + _TRACK_WINDOW + 1]
         errors.append(float(np.min(np.max(np.abs(near - e.q), axis=1))))
     track_err = float(np.median(errors)) if errors else float("inf")
+    # The ramped start: its first ramp_min_s at most the ramp speed.
+    ramp = loop.settings.ramp
+    t_ramp = next((t for t, m in result.transitions if m is Mode.RAMP_IN), None)
+    first = [e.q for e in log if t_ramp is not None and e.t_s < t_ramp + ramp.min_s]
+    ramp_peak = peak_speed_fraction(first, q_start, config.max_velocity / rate) if first else 0.0
     final_err = float(np.max(np.abs(sim_q - streamed[-1]))) if log else float("inf")
     checks = {
         "streamed commands within joint and velocity limits": limits.ok,
@@ -135,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
         f"stream matches offline (median max-joint error {track_err:.4f} rad)": (
             track_err <= _TRACK_TOL_RAD
         ),
+        f"ramped start: first {ramp.min_s:g} s at ≤ {ramp.fraction:.0%} of the velocity limits "
+        f"(peak {ramp_peak:.0%})": bool(first) and ramp_peak <= ramp.fraction * (1 + 1e-9),
         f"servos reached the last command (error {final_err:.4f} rad)": final_err < 0.05,
         "torque off on every servo at the end": not any(torque),
     }

@@ -36,6 +36,9 @@ from robot_retarget.robot.config import FloatArray, RobotConfig
 
 _CONSTRAINT_TOL = 1e-6  # twist (rad) / ground (m) violation still called "satisfied"
 _NO_GROUND = 1e9  # lower bound for foot heights when the root height is unknown (m)
+# A settling solve's time step (s): its velocity box opens to the joint limits and the
+# smoothness terms (∝ 1/dt², 1/dt⁴) vanish, so repeated solves converge to the frame's optimum.
+_SETTLE_DT_S = 1e3
 
 
 @dataclass(frozen=True)
@@ -315,6 +318,26 @@ class Retargeter:
             used_fallback=status is SolveStatus.FALLBACK,
             message="" if status is SolveStatus.OPTIMAL else status_text,
         )
+
+    def settle(
+        self, targets: FrameTargets, *, max_solves: int = 10, tol_rad: float = 1e-6
+    ) -> SolveResult:
+        """One frame solved to its optimum with no velocity limit: the start of a sequence.
+
+        The result becomes the history (as if the robot had rested there), so the next
+        :meth:`solve` goes on from it at the velocity limits. Nothing here bounds the jump from
+        the previous command: the caller either starts a file there or pursues the result at a
+        limited speed (the control loop's ramp). Joint limits and twist bounds still hold.
+        """
+        result = self.solve(targets, _SETTLE_DT_S)
+        for _ in range(max_solves - 1):
+            before = result.q
+            result = self.solve(targets, _SETTLE_DT_S)
+            if float(np.max(np.abs(result.q - before))) <= tol_rad:
+                break
+        self._q_prev = result.q.copy()
+        self._q_prev2 = result.q.copy()
+        return result
 
     @staticmethod
     def _final_check(q: FloatArray, lo: FloatArray, hi: FloatArray) -> None:

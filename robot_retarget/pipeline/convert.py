@@ -2,10 +2,12 @@
 
 Each frame goes through exactly what ``stream`` sends to a servo: the network's online step,
 the optimizer (Retargeter.solve, warm-started frame by frame) and the SafetyLayer, with the
-file's frame period as the control period. We do not use Retargeter.solve_clip here (windows
+file's frame period as the control period. The file starts at the clip's first frame solved
+to its optimum (no catching up from the robot's init pose): the trajectory a stream joins at
+the end of its ramp. We do not use Retargeter.solve_clip here (windows
 solved jointly are 15–30 % smoother, see robot_retarget.optimize) so that a converted file and
 a live stream of the same clip at the same rate give the same joint angles; every frame in the
-file is checked against the joint limits and the velocity limits (from the init pose).
+file is checked against the joint limits and the velocity limits (from its first frame).
 """
 
 from __future__ import annotations
@@ -51,13 +53,18 @@ class LimitCheck:
 def check_limits(
     config: RobotConfig, q: npt.ArrayLike, dt_s: float, q_start: npt.ArrayLike | None = None
 ) -> LimitCheck:
-    """Check a (T, J) trajectory against the config's position and velocity limits."""
+    """Check a (T, J) trajectory against the config's position and velocity limits; steps are
+    counted from ``q_start`` (where the robot was before the first row) when given, else
+    between the rows only (a file that starts where its first row is)."""
     a = np.asarray(q, dtype=np.float64)
     above = float(np.max(a - config.upper, initial=0.0))
     below = float(np.max(config.lower - a, initial=0.0))
     pos = max(0.0, above, below)
-    start = config.init_pose if q_start is None else np.asarray(q_start, dtype=np.float64)
-    steps = np.abs(np.diff(np.vstack([start[None], a]), axis=0))
+    if q_start is not None:
+        a_from = np.vstack([np.asarray(q_start, dtype=np.float64)[None], a])
+    else:
+        a_from = a
+    steps = np.abs(np.diff(a_from, axis=0))
     vel = max(0.0, float(np.max(steps - config.max_velocity * dt_s, initial=0.0)))
     return LimitCheck(pos, vel)
 
@@ -104,7 +111,9 @@ def convert_motion(
     t_start = time.perf_counter()
     for t in range(n):
         t0 = time.perf_counter()
-        out = step(m.local_quats[t], m.root_pos[t], dt)
+        out = step(m.local_quats[t], m.root_pos[t], dt, settle=t == 0)
+        if t == 0:
+            safety.reset(out.q)  # the step bound starts at the first frame's optimum
         sent = safety.send(JointCommand(out.q, t * dt * _STAMP_STRETCH))
         frame_ms[t] = (time.perf_counter() - t0) * 1e3
         q[t] = sent.q

@@ -5,10 +5,11 @@ One thread (the caller's) owns the backend; sources receive on their own threads
 human pose and sends one command. Modes:
 
 - WAITING: no input yet; nothing is sent (the robot stays as it is, torque untouched).
-- RAMP_IN: from the present pose toward the retargeted trajectory at ``ramp_speed_fraction``
-  of each joint's max velocity, until every joint is within ``catch_up_rad`` of it (start-up,
-  and after the safe pose), or after ``ramp_timeout_s`` (a motion too fast to catch); tracking
-  then goes on from the ramp's pose at the optimizer's velocity limits.
+- RAMP_IN (start-up, after the safe pose, and after a hold that interrupted a ramp): the
+  optimizer tracks the motion on its own, from the first frame solved to its optimum; the
+  robot pursues that trajectory from its present pose at ``ramp_speed_fraction`` of each
+  joint's max velocity for at least ``ramp_min_s``, then catches up and joins it
+  (:mod:`robot_retarget.pipeline.start_ramp`).
 - TRACKING: the retargeted command, every tick.
 - HOLD: input silent for more than ``hold_after_s`` (200 ms): the last command is held.
 - SAFE: silent for more than ``safe_after_s`` (2 s): move to the config's safe pose at the ramp
@@ -36,6 +37,7 @@ from robot_retarget.hardware.safety import ClipStats, SafetyLayer
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.pipeline.interpolation import FrameInterpolator
 from robot_retarget.pipeline.live_stats import LiveStats, StatsSnapshot
+from robot_retarget.pipeline.start_ramp import RampOutcome, RampSettings, StartRamp, toward
 from robot_retarget.pipeline.step import RetargetStep, StepStats
 from robot_retarget.sources.base import MotionSource
 
@@ -65,8 +67,10 @@ class LoopSettings:
     safe_after_s: float = 2.0
     ramp_speed_fraction: float = 0.25
     stop_timeout_s: float = 3.0
+    ramp_min_s: float = 0.5  # the ramp speed holds at least this long after every (re)start
+    catch_up_rad: float = 0.2  # then the pursuit speeds up once every joint is this close
+    ramp_rise_s: float = 0.5  # from the ramp speed to the velocity limit
     ramp_timeout_s: float = 3.0
-    catch_up_rad: float = 0.05  # ramp ends when every joint is this close to the motion
     report_every_s: float = 5.0
     duration_s: float | None = None
     delay_periods: float = 1.0  # playout delay, in (measured) input frame periods
@@ -74,12 +78,19 @@ class LoopSettings:
     def __post_init__(self) -> None:
         if self.rate_hz is not None and not self.rate_hz > 0:
             raise ValueError(f"rate_hz must be positive, got {self.rate_hz}")
-        if not 0.0 < self.ramp_speed_fraction <= 1.0:
-            raise ValueError(
-                f"ramp_speed_fraction must be in (0, 1], got {self.ramp_speed_fraction}"
-            )
         if not 0.0 < self.hold_after_s < self.safe_after_s:
             raise ValueError("need 0 < hold_after_s < safe_after_s")
+        self.ramp  # noqa: B018  (validates the ramp's settings)
+
+    @property
+    def ramp(self) -> RampSettings:
+        return RampSettings(
+            fraction=self.ramp_speed_fraction,
+            min_s=self.ramp_min_s,
+            catch_up_rad=self.catch_up_rad,
+            rise_s=self.ramp_rise_s,
+            timeout_s=self.ramp_timeout_s,
+        )
 
 
 @dataclass(frozen=True)
@@ -102,10 +113,9 @@ class LoopResult:
     transitions: list[tuple[float, Mode]] = field(default_factory=list)
     log: list[LogEntry] = field(default_factory=list)
     torque_released: bool = False
-
-
-def _toward(q: FloatArray, goal: FloatArray, step: FloatArray) -> FloatArray:
-    return q + np.clip(goal - q, -step, step)
+    # The robot's pose as read when streaming began (servo ticks on a bus): the first
+    # command's step is bounded from here.
+    start_q: FloatArray | None = None
 
 
 class ControlLoop:
@@ -142,14 +152,16 @@ class ControlLoop:
         self.mode = Mode.WAITING
         self.transitions: list[tuple[float, Mode]] = []
         self.log: list[LogEntry] = []
-        fraction = self.settings.ramp_speed_fraction
-        self._ramp_step = self.config.max_velocity * fraction * self.period_s
+        self._ramp = StartRamp(self.settings.ramp, self.config.max_velocity * self.period_s)
+        self._ramp_step = self._ramp.slow_step  # also the speed to the safe pose and at stop
         self._q_cmd: FloatArray = np.array(self.config.init_pose, dtype=np.float64)
         self._released = False
         self._ever_released = False
         self._sent_any = False
         self._last_seq: int | None = None
-        self._ramp_start = 0.0
+        self._start_q: FloatArray | None = None
+        self._settle_next = False  # the next step solves its frame to its optimum
+        self._ramp_done = False
         self._k = 0  # tick counter: command stamps are k periods apart
 
     # ----------------------------------------------------------------------------- helpers
@@ -218,11 +230,13 @@ class ControlLoop:
             transitions=list(self.transitions),
             log=self.log,
             torque_released=self._ever_released,
+            start_q=self._start_q,
         )
 
     def _stream(self) -> None:
         s = self.settings
         self._q_cmd = self._present()
+        self._start_q = self._q_cmd.copy()
         self.source.start()
         # Known once started (a tcp-bvh stream sends its skeleton in the header).
         self.step.set_source(self.source.skeleton)
@@ -274,9 +288,12 @@ class ControlLoop:
         elif self.mode is Mode.HOLD and silence_s > s.safe_after_s:
             self._set_mode(Mode.SAFE, now, f"input silent {silence_s:.1f} s: to the safe pose")
         elif self.mode is Mode.HOLD and silence_s <= s.hold_after_s:
-            # The optimizer goes on from the held command (its velocity box is centred there).
-            self.step.retargeter.reset(self._q_cmd)
-            self._set_mode(Mode.TRACKING, now, "input back: tracking")
+            if self._ramp_done:
+                # The optimizer goes on from the held command (its velocity box is centred there).
+                self.step.retargeter.reset(self._q_cmd)
+                self._set_mode(Mode.TRACKING, now, "input back: tracking")
+            else:  # the hold interrupted the ramp: start it again
+                self._start_ramp(now, "input back: ramping from the held pose")
         elif self.mode is Mode.SAFE and silence_s <= s.hold_after_s:
             if self._released:
                 self._q_cmd = self._present()
@@ -289,7 +306,7 @@ class ControlLoop:
         elif self.mode is Mode.SAFE:
             if self._released:
                 return
-            q = _toward(self._q_cmd, self.config.safe_pose, self._ramp_step)
+            q = toward(self._q_cmd, self.config.safe_pose, self._ramp_step)
             self._send(q, now, interp.play_time(now))
             reached = np.max(np.abs(self.config.safe_pose - self._q_cmd)) < 1e-6
             if reached and self.config.hardware.torque_off_at_safe_pose:
@@ -299,28 +316,33 @@ class ControlLoop:
 
     def _start_ramp(self, now: float, why: str) -> None:
         self.step.reset(self._q_cmd)
-        self._ramp_start = now
+        self._settle_next = True
+        self._ramp.begin(now)
+        self._ramp_done = False
         self._set_mode(Mode.RAMP_IN, now, why)
 
     def _track(self, now: float, interp: FrameInterpolator) -> None:
         sample = interp.sample(now)
         if sample is None:
             return
-        out = self.step(sample.local_quats, sample.root_pos, self.period_s)
+        out = self.step(
+            sample.local_quats, sample.root_pos, self.period_s, settle=self._settle_next
+        )
+        self._settle_next = False
         q = out.q
         if self.mode is Mode.RAMP_IN:
-            # Pursue the trajectory tracking would send, at the ramp speed, until caught up.
-            q = _toward(self._q_cmd, out.q, self._ramp_step)
-            gap = np.abs(out.q - self._q_cmd)
-            if np.all(gap <= self._ramp_step):
-                self._set_mode(Mode.TRACKING, now, "caught up with the motion: tracking")
-            elif np.all(gap <= self.settings.catch_up_rad) or (
-                now - self._ramp_start > self.settings.ramp_timeout_s
-            ):
-                # Close enough (or a motion too fast to catch): the optimizer goes on from the
-                # ramp's pose at its velocity limits.
+            # The optimizer runs ahead on the motion's own trajectory (its velocity box is
+            # centred on its own last solution); the robot pursues it.
+            q, outcome = self._ramp.advance(now, self._q_cmd, out.q)
+            if outcome is RampOutcome.ON_TRAJECTORY:
+                # q == out.q: the optimizer's history is the robot's, tracking goes on seamlessly.
+                self._ramp_done = True
+                self._set_mode(Mode.TRACKING, now, "on the motion's trajectory: tracking")
+            elif outcome is RampOutcome.TIMED_OUT:
+                # Never caught: the optimizer goes on from the robot's pose.
                 self.step.retargeter.reset(q)
-                self._set_mode(Mode.TRACKING, now, "ramp done: tracking")
+                self._ramp_done = True
+                self._set_mode(Mode.TRACKING, now, "ramp timed out: tracking from here")
         if sample.late:
             self.stats.late_ticks += 1
         self._send(q, now, sample.play_t_s)
@@ -337,7 +359,7 @@ class ControlLoop:
         goal = self.config.safe_pose
         next_tick = now
         while np.max(np.abs(goal - self._q_cmd)) > 1e-6 and self.clock() < deadline:
-            q = _toward(self._q_cmd, goal, self._ramp_step)
+            q = toward(self._q_cmd, goal, self._ramp_step)
             self._send(q, self.clock(), float("nan"))
             next_tick += self.period_s
             self._k += 1

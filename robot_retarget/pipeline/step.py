@@ -99,14 +99,24 @@ class RetargetStep:
         dt_s: float,
         *,
         q_prev: npt.ArrayLike | None = None,
+        settle: bool = False,
     ) -> StepOutput:
-        """Retarget one human frame; ``q_prev`` overrides the last command (velocity box)."""
+        """Retarget one human frame; ``q_prev`` overrides the last command (velocity box).
+
+        ``settle``: solve this frame to its optimum with no velocity limit
+        (:meth:`Retargeter.settle`), the first frame of a sequence that does not have to start
+        where the robot is."""
         t0 = time.perf_counter()
         quats, root = self.online.step(local_quats, root_pos)
         t1 = time.perf_counter()
         targets = self.target_builder(quats)
         t2 = time.perf_counter()
-        result = self.retargeter.solve(targets, dt_s, q_prev=q_prev)
+        if settle:
+            if q_prev is not None:
+                raise ValueError("settle starts a sequence: it takes no q_prev")
+            result = self.retargeter.settle(targets)
+        else:
+            result = self.retargeter.solve(targets, dt_s, q_prev=q_prev)
         t3 = time.perf_counter()
         self.stats.frames += 1
         self.stats.fallbacks += int(result.used_fallback)

@@ -153,7 +153,9 @@ def test_tcp_bvh_stream_drives_the_simulator(capsys: pytest.CaptureFixture[str])
         server.join(timeout=5.0)
     out = capsys.readouterr().out
     assert "0 dropped" in out
-    assert "tracking" in out
+    assert "modes: ramp-in" in out  # 1.2 s: the ramped start may still be catching up
+    retargeted = int(out.split("frames: ")[1].split(" retargeted")[0])
+    assert retargeted > 20
 
 
 def test_second_ctrl_c_switches_off_at_once() -> None:

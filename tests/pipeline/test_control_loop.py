@@ -26,6 +26,7 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.sources import wire
 from robot_retarget.sources.replay import ReplaySource
 from robot_retarget.sources.udp import UdpSource
+from tests.pipeline.fake_clock import FakeClock
 
 
 def _modes(entries: list[tuple[float, Mode]]) -> list[Mode]:
@@ -38,8 +39,11 @@ def _commands(log: list[LogEntry]) -> np.ndarray:
 
 def test_replay_into_the_simulator(step: RetargetStep, demo: HumanMotion, op3: RobotConfig) -> None:
     clip = demo.frames(0, 31)  # 1 s
-    backend = SimBackend(op3)
-    loop = ControlLoop(step, ReplaySource(clip), backend, record=True)
+    clock = FakeClock()
+    backend = SimBackend(op3, clock=clock.now)
+    settings = LoopSettings(ramp_speed_fraction=1.0)  # the ramp has its own tests
+    loop = ControlLoop(step, ReplaySource(clip), backend, settings, record=True,
+                       clock=clock.now, sleep=clock.sleep)  # fmt: skip
     result = loop.run()
     assert _modes(result.transitions)[0] is Mode.RAMP_IN
     assert Mode.TRACKING in _modes(result.transitions)
@@ -108,7 +112,7 @@ def test_stream_to_the_simulated_bus_follows_convert(
     assert len(follow) > 20
     assert float(np.median(follow)) < 0.02
     np.testing.assert_allclose(goal, result.log[-1].q, atol=0.002)  # one servo tick
-    assert check_limits(op3, _commands(result.log), loop.period_s, q_start=op3.init_pose).ok
+    assert check_limits(op3, _commands(result.log), loop.period_s, q_start=result.start_q).ok
 
 
 @contextmanager
@@ -299,7 +303,10 @@ def test_short_gap_holds_then_tracks_again_without_a_jump(
     step: RetargetStep, demo: HumanMotion, op3: RobotConfig
 ) -> None:
     src = UdpSource("127.0.0.1", 0, skeleton=demo.skeleton, nominal_fps=30.0)
-    settings = LoopSettings(hold_after_s=0.2, safe_after_s=1.5, duration_s=1.6)
+    # The ramp ends before the gap (a gap inside the ramp ramps again: test_start_ramp).
+    settings = LoopSettings(
+        hold_after_s=0.2, safe_after_s=1.5, duration_s=1.6, ramp_speed_fraction=1.0, ramp_min_s=0
+    )
 
     def plan(send: Callable[[bytes], None]) -> None:
         t0 = time.monotonic()

@@ -43,6 +43,25 @@ def test_same_input_gives_the_same_trajectory(step: RetargetStep, demo: HumanMot
     np.testing.assert_array_equal(a, b)
 
 
+def test_the_file_starts_at_the_first_frame_not_at_the_init_pose(
+    step: RetargetStep, demo: HumanMotion, op3: RobotConfig
+) -> None:
+    """No catching up from the init crouch: frame 0 is solved to its optimum, so a one-frame
+    clip is that pose and the first steps of a longer one move at the motion's speed."""
+    q = convert_motion(demo, step, fps=30.0).trajectory.q
+    one = convert_motion(demo.frames(0, 1), step, fps=30.0).trajectory.q
+    np.testing.assert_array_equal(one[0], q[0])
+    assert float(np.max(np.abs(q[0] - op3.init_pose))) > 1.0  # the demo's arms are not crouched
+    first_step = np.abs(q[1] - q[0]) / (op3.max_velocity / 30.0)
+    assert float(first_step.max()) < 0.5  # catching up would be 1.0 (the velocity limit)
+
+
+def test_check_limits_counts_steps_from_the_start_pose_when_given(op3: RobotConfig) -> None:
+    q = np.tile(op3.upper, (2, 1))
+    assert check_limits(op3, q, 0.01).ok  # a file that starts where it starts
+    assert not check_limits(op3, q, 0.01, q_start=op3.lower).ok  # a robot at the other end
+
+
 def test_check_limits_finds_violations(op3: RobotConfig) -> None:
     q = np.tile(op3.init_pose, (3, 1))
     assert check_limits(op3, q, 0.01).ok

@@ -56,14 +56,14 @@ class TrajectoryStats:
 def trajectory_stats(
     config: RobotConfig, q: npt.ArrayLike, fps: float, q_start: npt.ArrayLike | None = None
 ) -> TrajectoryStats:
-    """Violations, speed and jerk; the first step is taken from ``q_start`` (default: the config's
-    init pose, where every conversion starts)."""
+    """Violations, speed and jerk; the first step is taken from ``q_start`` when given, else the
+    steps between rows only (a conversion starts at its first frame)."""
     a = np.asarray(q, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != config.num_joints:
         raise ValueError(f"q must be (T, {config.num_joints}), got {a.shape}")
-    start = config.init_pose if q_start is None else np.asarray(q_start, dtype=np.float64)
+    from_start = a if q_start is None else np.vstack([np.asarray(q_start, np.float64)[None], a])
     outside = (a < config.lower - LIMIT_TOL_RAD) | (a > config.upper + LIMIT_TOL_RAD)
-    speed = np.abs(np.diff(np.vstack([start[None], a]), axis=0)) * fps  # (T, J) rad/s
+    speed = np.abs(np.diff(from_start, axis=0)) * fps  # (T or T-1, J) rad/s
     ratio = speed / config.max_velocity
     third = np.diff(a, n=3, axis=0)
     return TrajectoryStats(

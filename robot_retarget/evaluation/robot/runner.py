@@ -199,7 +199,14 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
         fallbacks = 0
         t0 = time.perf_counter()
         for t in range(m.num_frames):
-            result = retargeter.solve(targets.frame(t), dt)
+            # The first frame at its optimum, as convert starts.
+            result = (
+                retargeter.settle(targets.frame(t))
+                if t == 0
+                else retargeter.solve(targets.frame(t), dt)
+            )
+            if t == 0:
+                safety.reset(result.q)
             # Stamps 1 ppb apart more than dt, as convert does: the step bound is exactly v·dt.
             q[t] = safety.send(JointCommand(result.q, t * dt * (1.0 + 1e-9))).q
             fallbacks += int(result.used_fallback)
