@@ -1,2 +1,5 @@
-"""Simulation without hardware: a byte-level Dynamixel bus on a pseudo-terminal and a kinematic
-servo/robot model."""
+"""A thin alias kept so the simulator runs from a checkout as ``python -m sim.dxl_bus``.
+
+The simulator is product code and lives in :mod:`robot_retarget.sim`; nothing in the package
+imports this folder, and the wheel does not install it.
+"""

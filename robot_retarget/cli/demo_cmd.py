@@ -46,11 +46,11 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.pipeline.loop import ControlLoop, LoopSettings, Mode
     from robot_retarget.pipeline.robot_bvh import write_robot_bvh
-    from robot_retarget.pipeline.sim_bus import SimulatedRobotBus
     from robot_retarget.pipeline.start_ramp import peak_speed_fraction
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.render.preview import check_preview_path, render_preview
     from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.sim.robot_bus import SimulatedRobotBus
     from robot_retarget.sources.replay import ReplaySource
 
     if not (args.speed > 0 and 0 < args.seconds <= 12.0):

@@ -1,8 +1,9 @@
 """``bench loop``: cycle time of Sync Write (goal positions) + Sync Read (present positions) of
 all servos on the simulated bus, with and without the wire-time model.
 
-The simulated bus runs in its own process (``python -m sim.dxl_bus``) so it does not compete
-with the measured loop for the GIL. Each record also gives the bus's lower bound: the bytes of
+The simulated bus runs in its own process (``python -m robot_retarget.sim.dxl_bus``) so it
+does not compete with the measured loop for the GIL. Each record also gives the bus's lower bound:
+the bytes of
 one cycle × 10 bits / baud rate (OP3 at 2 Mbps: 2.24 ms with Sync Read, 1.58 ms with Fast Sync
 Read), so the Python overhead is median_ms (no wire model) and the wire-model rows show how
 close to the wire limit the loop gets. The ``backend_*`` rows time a whole
@@ -57,10 +58,11 @@ def cycle_bytes(
 
 
 class _SimProcess:
-    """``python -m sim.dxl_bus --robot NAME`` in a child process; reads its PORT lines."""
+    """``python -m robot_retarget.sim.dxl_bus --robot NAME`` in a child process; reads its PORT
+    lines."""
 
     def __init__(self, robot: str, n_buses: int, wire_time: bool) -> None:
-        cmd = [sys.executable, "-m", "sim.dxl_bus", "--robot", robot]
+        cmd = [sys.executable, "-m", "robot_retarget.sim.dxl_bus", "--robot", robot]
         if wire_time:
             cmd.append("--wire-time")
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)

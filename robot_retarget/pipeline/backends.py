@@ -40,7 +40,7 @@ def parse_ports(config: RobotConfig, ports: Sequence[str]) -> dict[str, str]:
 def open_backend(config: RobotConfig, kind: str, ports: Sequence[str] = ()) -> JointBackend:
     """An unconnected backend (the control loop connects it behind its safety layer)."""
     if kind == "sim":
-        from robot_retarget.hardware.sim_backend import SimBackend
+        from robot_retarget.sim.backend import SimBackend
 
         return SimBackend(config)
     if kind == "dynamixel":

@@ -20,8 +20,8 @@ from robot_retarget.cli import stream_cmd
 from robot_retarget.errors import MotionFormatError, SourceError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.pipeline.convert import check_limits
-from robot_retarget.pipeline.sim_bus import SimulatedRobotBus
 from robot_retarget.robot.loader import load_robot_config
+from robot_retarget.sim.robot_bus import SimulatedRobotBus
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "tests" / "fixtures" / "motion"

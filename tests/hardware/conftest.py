@@ -16,7 +16,7 @@ import pytest
 
 from robot_retarget.hardware.bus import DynamixelBus
 from robot_retarget.robot.config import BusConfig, HardwareSettings, JointConfig, RobotConfig
-from sim.dxl_bus import SimulatedBus, buses_for_robot
+from robot_retarget.sim.dxl_bus import SimulatedBus, buses_for_robot
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -11,8 +11,8 @@ from robot_retarget.errors import CommunicationError
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import DynamixelBus, PortUnavailableError, buses_from_config
 from robot_retarget.robot.config import RobotConfig
-from sim.dxl_bus import SimulatedBus
-from sim.servo import SimServo
+from robot_retarget.sim.dxl_bus import SimulatedBus
+from robot_retarget.sim.servo import SimServo
 
 
 @pytest.fixture

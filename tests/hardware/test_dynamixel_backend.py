@@ -22,7 +22,7 @@ from robot_retarget.hardware.safety import SafetyLayer, UnsafeCommandError
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_units import ServoUnits
-from sim.dxl_bus import SimulatedBus
+from robot_retarget.sim.dxl_bus import SimulatedBus
 
 MakeBuses = Callable[..., dict[str, DynamixelBus]]
 FRAMES = 2000

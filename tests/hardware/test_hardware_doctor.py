@@ -11,7 +11,7 @@ import pytest
 from robot_retarget.cli import doctor_cmd
 from robot_retarget.hardware import doctor
 from robot_retarget.robot.config import RobotConfig
-from sim.dxl_bus import SimulatedBus
+from robot_retarget.sim.dxl_bus import SimulatedBus
 
 
 def test_latency_timer_read_and_advice(tmp_path: Path) -> None:

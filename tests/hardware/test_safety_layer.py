@@ -10,9 +10,9 @@ from hypothesis.extra.numpy import arrays
 
 from robot_retarget.errors import HardwareError
 from robot_retarget.hardware.safety import SafetyLayer, UnsafeCommandError
-from robot_retarget.hardware.sim_backend import SimBackend
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.sim.backend import SimBackend
 
 
 def _layer(config: RobotConfig) -> tuple[SafetyLayer, SimBackend]:

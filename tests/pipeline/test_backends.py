@@ -6,9 +6,9 @@ import pytest
 
 from robot_retarget.errors import HardwareError
 from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
-from robot_retarget.hardware.sim_backend import SimBackend
 from robot_retarget.pipeline.backends import open_backend, parse_ports
 from robot_retarget.robot.config import BusConfig, RobotConfig
+from robot_retarget.sim.backend import SimBackend
 
 
 def test_ports_for_one_and_two_buses(op3: RobotConfig) -> None:

@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 
 from robot_retarget.errors import HardwareError
-from robot_retarget.hardware.sim_backend import SimBackend
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.pipeline.convert import check_limits, convert_motion
 from robot_retarget.pipeline.loop import ControlLoop, LogEntry, LoopSettings, Mode
-from robot_retarget.pipeline.sim_bus import SimulatedRobotBus
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.sim.backend import SimBackend
+from robot_retarget.sim.robot_bus import SimulatedRobotBus
 from robot_retarget.sources import wire
 from robot_retarget.sources.replay import ReplaySource
 from robot_retarget.sources.udp import UdpSource

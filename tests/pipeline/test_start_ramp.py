@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_retarget.hardware.sim_backend import SimBackend
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.nn.inference import LoadedModel
@@ -16,6 +15,7 @@ from robot_retarget.pipeline.loop import ControlLoop, LoopResult, LoopSettings, 
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.loader import load_robot_config
+from robot_retarget.sim.backend import SimBackend
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources.base import MotionSource, SourceFrame, SourceStats
 from tests.pipeline.fake_clock import FakeClock

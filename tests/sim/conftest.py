@@ -8,8 +8,15 @@ from typing import Any
 import dynamixel_sdk as sdk
 import pytest
 
-from sim.dxl_bus import SimulatedBus
-from sim.servo import SimServo
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.loader import load_robot_config
+from robot_retarget.sim.dxl_bus import SimulatedBus
+from robot_retarget.sim.servo import SimServo
+
+
+@pytest.fixture(scope="session")
+def op3() -> RobotConfig:
+    return load_robot_config("op3")
 
 
 @pytest.fixture

@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import DynamixelBus
-from sim.dxl_bus import SimulatedBus
-from sim.servo import SimServo
+from robot_retarget.sim.dxl_bus import SimulatedBus
+from robot_retarget.sim.servo import SimServo
 
 Client = tuple[Any, Any]
 OK = sdk.COMM_SUCCESS

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.kinematic import KinematicRobot, ServoDynamics
+from robot_retarget.sim.kinematic import KinematicRobot, ServoDynamics
 
 
 @settings(max_examples=100)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from sim.servo import ACCESS_ERROR, DATA_LIMIT_ERROR, OK, SimServo
+from robot_retarget.sim.servo import ACCESS_ERROR, DATA_LIMIT_ERROR, OK, SimServo
 
 
 def test_memory_starts_at_factory_defaults() -> None:

@@ -1,4 +1,5 @@
-"""``python -m sim.dxl_bus --robot op3``: PORT line first, serves the real SDK, stops on SIGINT."""
+"""``python -m robot_retarget.sim.dxl_bus --robot op3``: PORT line first, serves the real SDK,
+stops on SIGINT."""
 
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ def test_standalone_bus_serves_the_sdk() -> None:
     except Exception as exc:  # the YAML is written by another helper
         pytest.skip(f"op3 config not loadable: {exc}")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "sim.dxl_bus", "--robot", "op3"],
+        [sys.executable, "-m", "robot_retarget.sim.dxl_bus", "--robot", "op3"],
         cwd=REPO,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

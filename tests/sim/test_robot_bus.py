@@ -3,8 +3,8 @@ from __future__ import annotations
 import numpy as np
 
 from robot_retarget.hardware.types import JointCommand
-from robot_retarget.pipeline.sim_bus import SimulatedRobotBus
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.sim.robot_bus import SimulatedRobotBus
 
 
 def test_real_sdk_moves_the_simulated_servos(op3: RobotConfig) -> None:

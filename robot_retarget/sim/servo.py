@@ -3,8 +3,8 @@
 Memory is built from robot_retarget.hardware.control_table. Writes are checked like the real
 firmware does: read-only registers → access error, EEPROM while torque is on → access error,
 a goal position outside the position limits → data limit error (value ignored). Present
-position/velocity follow the goal through :class:`sim.kinematic.ServoDynamics` whenever torque
-is on, advanced lazily to the bus's clock when the servo is touched.
+position/velocity follow the goal through :class:`robot_retarget.sim.kinematic.ServoDynamics`
+whenever torque is on, advanced lazily to the bus's clock when the servo is touched.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from robot_retarget.hardware.control_table import (
 )
 from robot_retarget.hardware.protocol import le_bytes
 from robot_retarget.robot.servo_models import servo_model
-from sim.kinematic import ServoDynamics
+from robot_retarget.sim.kinematic import ServoDynamics
 
 # Status-packet error codes the servo can produce, protocol-neutral.
 OK = 0

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from robot_retarget.errors import HardwareError
-from robot_retarget.hardware.sim_backend import SimBackend
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.sim.backend import SimBackend
 
 
 def test_offline_tracking_with_velocity_limit(op3: RobotConfig) -> None:

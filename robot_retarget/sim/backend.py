@@ -1,8 +1,9 @@
 """SimBackend: a JointBackend on the kinematic robot simulator, no serial port at all.
 
 Each joint follows its goal with a first-order lag and its config max velocity, within the
-config's joint limits (:class:`sim.kinematic.KinematicRobot`). Real time by default; with
-``realtime=False`` the simulation advances to each command's ``t_s`` instead (offline runs).
+config's joint limits (:class:`robot_retarget.sim.kinematic.KinematicRobot`). Real time by
+default; with ``realtime=False`` the simulation advances to each command's ``t_s`` instead (offline
+runs).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from robot_retarget.errors import HardwareError
 from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.types import FloatArray, JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
-from sim.kinematic import KinematicRobot
+from robot_retarget.sim.kinematic import KinematicRobot
 
 
 class SimBackend(JointBackend):

@@ -1,7 +1,8 @@
 """A robot's simulated Dynamixel buses on pseudo-terminals, for the demo and end-to-end tests.
 
-The real dynamixel-sdk opens the pty like a USB adapter; the simulated servos (sim.dxl_bus)
-answer byte for byte in a background thread. Reply time over a pty with the simulator in the
+The real dynamixel-sdk opens the pty like a USB adapter; the simulated servos
+(robot_retarget.sim.dxl_bus) answer byte for byte in a background thread. Reply time over a pty
+with the simulator in the
 same Python process is a few milliseconds, not the microseconds of a real bus, so the packet
 timeout is raised to ``packet_timeout_ms`` (20 ms) here.
 """
@@ -16,7 +17,7 @@ import numpy.typing as npt
 from robot_retarget.hardware.bus import buses_from_config
 from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
 from robot_retarget.robot.config import RobotConfig
-from sim.dxl_bus import SimulatedBus, buses_for_robot
+from robot_retarget.sim.dxl_bus import SimulatedBus, buses_for_robot
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -1,0 +1,567 @@
+"""A simulated Dynamixel bus served byte for byte on a pseudo-terminal.
+
+The real dynamixel-sdk + pyserial open the pty's slave path like a USB adapter; this object
+reads the master side, frames and checks every packet strictly (header, length, CRC-16 or
+checksum, Protocol 2.0 byte stuffing: an unstuffed ``FF FF FD`` in a payload is malformed and
+gets no reply), runs the instruction on its :class:`robot_retarget.sim.servo.SimServo` objects
+and writes the status packets back. Optional wire-time model: replies come no earlier than the
+bytes would take
+on a real bus at the configured baud rate (10 bits per byte), plus each servo's return delay.
+Fault injection: dropped, corrupt or late replies, hardware error bits, an unplugged port.
+
+Runs in a background thread (tests) or standalone::
+
+    python -m robot_retarget.sim.dxl_bus --robot op3          # first line: PORT /dev/pts/N
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import contextlib
+import os
+import select
+import signal
+import sys
+import threading
+import time
+import tty
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from types import FrameType, TracebackType
+
+from robot_retarget.hardware import protocol as p
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.sim.servo import OK, SimServo
+
+_INCOMPLETE_PACKET_TIMEOUT_S = 0.05
+
+
+@dataclass
+class Faults:
+    """What to break next. Counters count down as replies are affected."""
+
+    drop_replies: int = 0
+    corrupt_replies: int = 0
+    late_replies: int = 0
+    late_reply_s: float = 0.05
+    only_id: int | None = None  # restrict reply faults to this servo (None: any)
+
+    def _applies(self, servo_id: int) -> bool:
+        return self.only_id is None or self.only_id == servo_id
+
+
+@dataclass
+class BusLog:
+    """Everything the bus received: raw accepted packets and rejected ones with the reason."""
+
+    packets: collections.deque[bytes] = field(
+        default_factory=lambda: collections.deque(maxlen=200_000)
+    )
+    rejected: list[tuple[bytes, str]] = field(default_factory=list)
+
+
+class SimulatedBus:
+    """Servos on one simulated serial bus. Use as a context manager or start()/stop()."""
+
+    def __init__(
+        self,
+        servos: Iterable[SimServo],
+        *,
+        protocol: float,
+        baud_rate: int = 1_000_000,
+        wire_time: bool = False,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        if protocol not in (1.0, 2.0):
+            raise ValueError(f"protocol must be 1.0 or 2.0, got {protocol!r}")
+        self.protocol = float(protocol)
+        self.servos: dict[int, SimServo] = {}
+        for s in servos:
+            if s.protocol != self.protocol:
+                raise ValueError(
+                    f"servo {s.servo_id} ({s.table.model}) speaks Protocol {s.protocol}, "
+                    f"the bus Protocol {self.protocol}"
+                )
+            self.servos[s.servo_id] = s
+        self.baud_rate = baud_rate
+        self.wire_time = wire_time
+        self._clock = clock
+        self.faults = Faults()
+        self.log = BusLog()
+        self._lock = threading.RLock()
+        self._master: int | None = None
+        self._slave: int | None = None
+        self.port: str | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._buf = bytearray()
+        self._last_rx = 0.0
+        self._last_advance = clock()
+        self._bus_free_at = 0.0
+        self.unplugged = False
+        self._busy = False  # between reading bytes and having answered them
+
+    # ----- lifecycle -------------------------------------------------------------------------
+    def start(self) -> str:
+        """Open the pty and serve it from a daemon thread; returns the port path."""
+        self.open()
+        self._thread = threading.Thread(target=self.serve, name="sim-dxl-bus", daemon=True)
+        self._thread.start()
+        return self.port or ""
+
+    def open(self) -> str:
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        # The slave stays open here too: otherwise closing the last client end makes the
+        # master read EIO and the bus could not be reopened by the next client.
+        self._master, self._slave = master, slave
+        self.port = os.ttyname(slave)
+        return self.port
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        self._close_fds()
+
+    def _close_fds(self) -> None:
+        for fd in (self._master, self._slave):
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self._master = self._slave = None
+
+    def unplug(self) -> None:
+        """Simulate pulling the USB cable: the device goes away, clients get I/O errors."""
+        self.unplugged = True
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        self._close_fds()
+
+    def __enter__(self) -> SimulatedBus:
+        self.start()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.stop()
+
+    # ----- serving ---------------------------------------------------------------------------
+    def serve(self) -> None:
+        """Serve until stop(); reads the master side and answers packets."""
+        master = self._master
+        if master is None:
+            raise RuntimeError("SimulatedBus.serve() before open()")
+        while not self._stop.is_set():
+            ready, _, _ = select.select([master], [], [], 0.05)
+            if not ready:
+                self._drop_stale_partial()
+                continue
+            self._busy = True
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                chunk = b""  # no client has the port open right now
+            if chunk:
+                now = self._clock()
+                self._last_rx = now
+                self._buf.extend(chunk)
+                self._process_buffer(now)
+            self._busy = False
+
+    def settle(self, quiet_s: float = 0.01, timeout_s: float = 2.0) -> None:
+        """Wait until every byte sent to the bus so far has been processed: nothing pending on
+        the pty, no packet half-processed, and no new packet for ``quiet_s``."""
+        deadline = time.monotonic() + timeout_s
+        count = -1
+        while time.monotonic() < deadline:
+            now_count = len(self.log.packets) + len(self.log.rejected)
+            master = self._master
+            pending = False
+            if master is not None:
+                try:
+                    pending = bool(select.select([master], [], [], 0.0)[0])
+                except (OSError, ValueError):
+                    pending = False
+            if now_count == count and not pending and not self._busy and not self._buf:
+                return
+            count = now_count
+            time.sleep(quiet_s)
+
+    def feed(self, data: bytes) -> bytes:
+        """Process bytes as if received on the wire; returns the reply bytes (for unit tests)."""
+        out = bytearray()
+        self._buf.extend(data)
+        self._process_buffer(self._clock(), out)
+        return bytes(out)
+
+    def _drop_stale_partial(self) -> None:
+        if self._buf and self._clock() - self._last_rx > _INCOMPLETE_PACKET_TIMEOUT_S:
+            self.log.rejected.append((bytes(self._buf), "incomplete packet timed out"))
+            self._buf.clear()
+
+    def _process_buffer(self, now: float, sink: bytearray | None = None) -> None:
+        buf = self._buf
+        v2 = self.protocol == 2.0
+        while buf:
+            start = p.find_header(buf, self.protocol)
+            if start:
+                del buf[:start]
+                if not buf:
+                    return
+            total = p.packet_length_v2(buf) if v2 else p.packet_length_v1(buf)
+            if total is None or len(buf) < total:
+                return
+            raw = bytes(buf[:total])
+            del buf[:total]
+            try:
+                packet = p.parse_v2(raw) if v2 else p.parse_v1(raw, status=False)
+            except p.MalformedPacketError as exc:
+                self.log.rejected.append((raw, str(exc)))
+                self._reply_checksum_error(raw, now, sink)
+                continue
+            self.log.packets.append(raw)
+            with self._lock:
+                replies = self._execute(packet, now)
+            self._send(replies, len(raw), now, sink)
+
+    def _reply_checksum_error(self, raw: bytes, now: float, sink: bytearray | None) -> None:
+        # A servo that can read its own ID reports a CRC/checksum error; malformed stuffing
+        # (a false header inside the payload) gets no reply, as the firmware would resync.
+        if b"\xff\xff\xfd" in raw[7:-2] and self.protocol == 2.0:
+            return
+        sid = raw[4] if self.protocol == 2.0 else raw[2]
+        if sid not in self.servos:
+            return
+        servo = self.servos[sid]
+        if self.protocol == 2.0:
+            reply = p.build_status_v2(sid, p.ERR2_CRC | (0x80 if servo.hardware_error else 0))
+        else:
+            reply = p.build_status_v1(sid, p.ERR1_CHECKSUM | (servo.hardware_error & 0x25))
+        self._send([(sid, reply)], len(raw), now, sink)
+
+    def _send(
+        self,
+        replies: Sequence[tuple[int, bytes]],
+        n_in: int,
+        t_rx: float,
+        sink: bytearray | None,
+    ) -> None:
+        out = bytearray()
+        late_s = 0.0
+        for sid, reply in replies:
+            f = self.faults
+            if f.drop_replies > 0 and f._applies(sid):
+                f.drop_replies -= 1
+                continue
+            if f.corrupt_replies > 0 and f._applies(sid):
+                f.corrupt_replies -= 1
+                reply = reply[:-1] + bytes(((reply[-1] ^ 0x5A),))
+            if f.late_replies > 0 and f._applies(sid):
+                f.late_replies -= 1
+                late_s = max(late_s, f.late_reply_s)
+            out += reply
+        if self.wire_time:
+            byte_s = 10.0 / self.baud_rate
+            start = max(t_rx, self._bus_free_at)
+            delay_s = sum(
+                2e-6 * self.servos[sid].get("return_delay_time")
+                for sid, _ in replies
+                if sid in self.servos
+            )
+            done = start + (n_in + len(out)) * byte_s + delay_s
+            self._bus_free_at = done
+            _sleep_until(done, self._clock)
+        if late_s:
+            time.sleep(late_s)
+        if not out:
+            return
+        if sink is not None:
+            sink += out
+        elif self._master is not None:
+            with contextlib.suppress(OSError):
+                os.write(self._master, out)
+
+    # ----- instructions ----------------------------------------------------------------------
+    def _advance(self, now: float) -> None:
+        dt = now - self._last_advance
+        if dt > 0.0:
+            for servo in self.servos.values():
+                servo.advance(dt)
+            self._last_advance = now
+
+    def _execute(self, pkt: p.Packet, now: float) -> list[tuple[int, bytes]]:
+        self._advance(now)
+        if self.protocol == 2.0:
+            return self._execute_v2(pkt)
+        return self._execute_v1(pkt)
+
+    def _status(self, servo: SimServo, code: int, params: bytes = b"") -> tuple[int, bytes]:
+        if self.protocol == 2.0:
+            return servo.servo_id, p.build_status_v2(
+                servo.servo_id, servo.status_error_v2(code), params
+            )
+        return servo.servo_id, p.build_status_v1(
+            servo.servo_id, servo.status_error_v1(code), params
+        )
+
+    def _instruction_error(self, servo: SimServo) -> tuple[int, bytes]:
+        if self.protocol == 2.0:
+            err = p.ERR2_INSTRUCTION | (0x80 if servo.hardware_error else 0)
+            return servo.servo_id, p.build_status_v2(servo.servo_id, err)
+        err = p.ERR1_INSTRUCTION | (servo.hardware_error & 0x25)
+        return servo.servo_id, p.build_status_v1(servo.servo_id, err)
+
+    def _targets(self, sid: int) -> list[SimServo]:
+        if sid == p.BROADCAST_ID:
+            return [self.servos[k] for k in sorted(self.servos)]
+        servo = self.servos.get(sid)
+        return [] if servo is None else [servo]
+
+    def _execute_v2(self, pkt: p.Packet) -> list[tuple[int, bytes]]:
+        inst, prm, sid = pkt.code, pkt.params, pkt.servo_id
+        bcast = sid == p.BROADCAST_ID
+        replies: list[tuple[int, bytes]] = []
+        if inst == p.INST_PING:
+            for s in self._targets(sid):
+                info = p.le_bytes(s.get("model_number"), 2) + bytes((s.get("firmware_version"),))
+                replies.append(self._status(s, OK, info))
+            return replies
+        if inst in (p.INST_READ, p.INST_WRITE, p.INST_REG_WRITE) and len(prm) < 3 + (
+            inst == p.INST_READ
+        ):
+            return [self._status(s, 3) for s in self._targets(sid) if not bcast]
+        if inst == p.INST_READ:
+            addr, length = prm[0] | prm[1] << 8, prm[2] | prm[3] << 8
+            for s in self._targets(sid) if not bcast else []:
+                code, data = s.read(addr, length)
+                replies.append(self._status(s, code, data))
+            return replies
+        if inst == p.INST_WRITE:
+            addr = prm[0] | prm[1] << 8
+            for s in self._targets(sid):
+                code = s.write(addr, prm[2:])
+                if not bcast:
+                    replies.append(self._status(s, code))
+            return replies
+        if inst == p.INST_REG_WRITE:
+            for s in self._targets(sid):
+                s.registered = (prm[0] | prm[1] << 8, bytes(prm[2:]))
+                s._put("registered_instruction", 1)
+                if not bcast:
+                    replies.append(self._status(s, OK))
+            return replies
+        if inst == p.INST_ACTION:
+            for s in self._targets(sid):
+                if s.registered is not None:
+                    s.write(*s.registered)
+                    s.registered = None
+                    s._put("registered_instruction", 0)
+                if not bcast:
+                    replies.append(self._status(s, OK))
+            return replies
+        if inst == p.INST_REBOOT:
+            for s in self._targets(sid):
+                if not bcast:
+                    replies.append(self._status(s, OK))
+                s.reboot()
+            return replies
+        if inst in (p.INST_SYNC_READ, p.INST_FAST_SYNC_READ) and bcast and len(prm) >= 4:
+            addr, length = prm[0] | prm[1] << 8, prm[2] | prm[3] << 8
+            listed = [self.servos[i] for i in prm[4:] if i in self.servos]
+            if inst == p.INST_SYNC_READ:
+                for s in listed:
+                    code, data = s.read(addr, length)
+                    replies.append(self._status(s, code, data))
+                return replies
+            return self._fast_sync_read(listed, addr, length)
+        if inst == p.INST_SYNC_WRITE and bcast and len(prm) >= 4:
+            addr, length = prm[0] | prm[1] << 8, prm[2] | prm[3] << 8
+            body = prm[4:]
+            for k in range(0, len(body) - length, length + 1):
+                servo = self.servos.get(body[k])
+                if servo is not None:
+                    servo.write(addr, body[k + 1 : k + 1 + length])
+            return replies
+        if inst == p.INST_BULK_READ and bcast:
+            for k in range(0, len(prm) - 4, 5):
+                servo = self.servos.get(prm[k])
+                if servo is not None:
+                    code, data = servo.read(
+                        prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8
+                    )
+                    replies.append(self._status(servo, code, data))
+            return replies
+        if inst == p.INST_BULK_WRITE and bcast:
+            k = 0
+            while k + 5 <= len(prm):
+                addr, length = prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8
+                servo = self.servos.get(prm[k])
+                if servo is not None:
+                    servo.write(addr, prm[k + 5 : k + 5 + length])
+                k += 5 + length
+            return replies
+        return [self._instruction_error(s) for s in self._targets(sid) if not bcast]
+
+    def _fast_sync_read(
+        self, listed: list[SimServo], addr: int, length: int
+    ) -> list[tuple[int, bytes]]:
+        """One status packet from ID 0xFE: [ERR ID DATA CRC] per servo; each servo's CRC is the
+        running CRC of the packet so far, the last one the packet's own CRC."""
+        if not listed:
+            return []
+        total = 1 + len(listed) * (length + 4)
+        pkt = bytearray(p.HEADER_V2 + bytes((p.BROADCAST_ID, total & 0xFF, total >> 8, 0x55)))
+        for s in listed:
+            code, data = s.read(addr, length)
+            pkt += bytes((s.status_error_v2(code), s.servo_id)) + data.ljust(length, b"\0")
+            crc = p.crc16(pkt)
+            pkt += bytes((crc & 0xFF, crc >> 8))
+        return [(listed[0].servo_id, bytes(pkt))]
+
+    def _execute_v1(self, pkt: p.Packet) -> list[tuple[int, bytes]]:
+        inst, prm, sid = pkt.code, pkt.params, pkt.servo_id
+        bcast = sid == p.BROADCAST_ID
+        replies: list[tuple[int, bytes]] = []
+        if inst == p.INST_PING:
+            return [self._status(s, OK) for s in self._targets(sid) if not bcast]
+        if inst == p.INST_READ and len(prm) == 2:
+            for s in self._targets(sid) if not bcast else []:
+                code, data = s.read(prm[0], prm[1])
+                replies.append(self._status(s, code, data))
+            return replies
+        if inst in (p.INST_WRITE, p.INST_REG_WRITE) and len(prm) >= 2:
+            for s in self._targets(sid):
+                if inst == p.INST_WRITE:
+                    code = s.write(prm[0], prm[1:])
+                else:
+                    s.registered, code = (prm[0], bytes(prm[1:])), OK
+                    s._put("registered", 1)
+                if not bcast:
+                    replies.append(self._status(s, code))
+            return replies
+        if inst == p.INST_ACTION:
+            for s in self._targets(sid):
+                if s.registered is not None:
+                    s.write(*s.registered)
+                    s.registered = None
+                    s._put("registered", 0)
+            return replies
+        if inst == p.INST_SYNC_WRITE and bcast and len(prm) >= 2:
+            addr, length = prm[0], prm[1]
+            body = prm[2:]
+            for k in range(0, len(body) - length, length + 1):
+                servo = self.servos.get(body[k])
+                if servo is not None:
+                    servo.write(addr, body[k + 1 : k + 1 + length])
+            return replies
+        if inst == p.INST_BULK_READ and bcast and len(prm) >= 1:
+            for k in range(1, len(prm) - 2, 3):
+                length, bid, addr = prm[k], prm[k + 1], prm[k + 2]
+                servo = self.servos.get(bid)
+                if servo is None or not servo.table.bulk_read:
+                    continue  # an AX ignores bulk read; the reply chain ends there
+                code, data = servo.read(addr, length)
+                replies.append(self._status(servo, code, data))
+            return replies
+        return [self._instruction_error(s) for s in self._targets(sid) if not bcast]
+
+
+def _sleep_until(deadline: float, clock: Callable[[], float]) -> None:
+    # Sleep for the bulk, spin for the last 0.2 ms: sleep() overshoots by ~0.1 ms on Linux.
+    remaining = deadline - clock()
+    if remaining > 3e-4:
+        time.sleep(remaining - 2e-4)
+    while clock() < deadline:
+        pass
+
+
+# ----- robots ----------------------------------------------------------------------------------
+def servos_for_bus(
+    config: RobotConfig, bus_name: str, q_rad: Sequence[float] | None = None
+) -> list[SimServo]:
+    """Simulated servos of one bus of a robot, horns at joint angles ``q_rad`` (default: the
+    config's init pose), using the config's direction and zero offset."""
+    q = config.init_pose if q_rad is None else q_rad
+    servos = []
+    for i, joint in enumerate(config.joints):
+        if joint.bus != bus_name:
+            continue
+        s = SimServo(joint.servo_id, joint.servo_model)
+        s.set_present_rad(joint.direction * float(q[i]) + joint.zero_offset_rad)
+        servos.append(s)
+    return servos
+
+
+def buses_for_robot(
+    config: RobotConfig,
+    *,
+    wire_time: bool = False,
+    q_rad: Sequence[float] | None = None,
+) -> dict[str, SimulatedBus]:
+    """One (not yet started) simulated bus per bus of the robot config."""
+    return {
+        b.name: SimulatedBus(
+            servos_for_bus(config, b.name, q_rad),
+            protocol=b.protocol,
+            baud_rate=b.baud_rate,
+            wire_time=wire_time,
+        )
+        for b in config.buses
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m robot_retarget.sim.dxl_bus",
+        description="Serve a robot's Dynamixel servos on pseudo-terminals until interrupted.",
+    )
+    parser.add_argument("--robot", required=True, help="robot config name or YAML path")
+    parser.add_argument(
+        "--wire-time", action="store_true", help="delay replies by the bytes' time on the wire"
+    )
+    args = parser.parse_args(argv)
+    from robot_retarget.robot.loader import load_robot_config
+
+    config = load_robot_config(args.robot)
+    buses = buses_for_robot(config, wire_time=args.wire_time)
+    for bus in buses.values():
+        bus.open()
+    # First line(s): one PORT line per bus, in the config's bus order.
+    for name, bus in buses.items():
+        suffix = f" {name}" if len(buses) > 1 else ""
+        print(f"PORT {bus.port}{suffix}", flush=True)
+    for name, bus in buses.items():
+        print(
+            f"# {config.name} bus {name}: Protocol {bus.protocol}, {bus.baud_rate} bps, "
+            f"IDs {sorted(bus.servos)}; Ctrl-C to stop",
+            flush=True,
+        )
+
+    stop = threading.Event()
+
+    def _on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, _on_signal)
+    signal.signal(signal.SIGTERM, _on_signal)
+    threads = [threading.Thread(target=b.serve, daemon=True) for b in buses.values()]
+    for t in threads:
+        t.start()
+    while not stop.is_set():
+        stop.wait(0.2)
+    for bus in buses.values():
+        bus.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
