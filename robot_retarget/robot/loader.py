@@ -1,4 +1,4 @@
-"""Load and validate robot configs (``configs/robots/*.yaml``) into :class:`RobotConfig`.
+"""Load and validate robot configs (``configs/robots/<name>/<name>.yaml``) into :class:`RobotConfig`.
 
 Every mistake raises :class:`~robot_retarget.errors.ConfigError` naming the file, the key as a
 dotted path (``joints[3].limits.lower``) and what is allowed. Nothing invalid gets past here.
@@ -6,11 +6,12 @@ dotted path (``joints[3].limits.lower``) and what is allowed. Nothing invalid ge
 Units in the YAML: metres, radians, rad/s, unless a value is tagged: ``!deg 90`` is 90° (stored
 as π/2 rad), ``!rpm 46`` is 46 rpm (stored as rad/s). Tags also apply to lists: ``!deg [0, 0, 90]``.
 
-Where configs are found: a bare name (``"op3"``) is looked up as ``<dir>/<name>.yaml`` in, in
-order, ``$ROBOT_RETARGET_CONFIG_DIR`` (if set), the repository's ``configs/robots`` next to the
-package (a source checkout or an editable install: ``<repo>/robot_retarget/../configs/robots``)
-and ``robot_retarget/data/robots`` inside the package (where a wheel build may copy them as
-package data). Anything with a path separator or a ``.yaml``/``.yml`` suffix is a file path.
+Where configs are found: anything with a path separator or a ``.yaml``/``.yml`` suffix is a
+file path. A bare name (``"op3"``) is looked up, as ``<dir>/<name>/<name>.yaml`` (one folder per
+robot with its README and licence, as MuJoCo Menagerie) or ``<dir>/<name>.yaml``, in each
+folder of ``$ROBOT_RETARGET_CONFIG_DIR`` (a search path: folders separated by ``os.pathsep``),
+then in the robots that ship with the package: ``robot_retarget/robots`` in an installed wheel,
+the repository's ``configs/robots`` in a checkout or an editable install.
 """
 
 from __future__ import annotations
@@ -82,14 +83,15 @@ _HARDWARE_KEYS = (
 
 
 def config_dirs() -> list[Path]:
-    """Folders searched for ``<name>.yaml``, in order (see the module docstring)."""
-    dirs: list[Path] = []
-    env = os.environ.get(CONFIG_DIR_ENV)
-    if env:
-        dirs.append(Path(env))
-    dirs.append(_PACKAGE_DIR.parent / "configs" / "robots")
-    dirs.append(_PACKAGE_DIR / "data" / "robots")
+    """Folders searched for a robot by name, in order (see the module docstring)."""
+    dirs = [Path(d) for d in os.environ.get(CONFIG_DIR_ENV, "").split(os.pathsep) if d]
+    dirs.append(_PACKAGE_DIR / "robots")  # a wheel's package data
+    dirs.append(_PACKAGE_DIR.parent / "configs" / "robots")  # a checkout
     return dirs
+
+
+def _candidates(folder: Path, name: str) -> tuple[Path, Path]:
+    return folder / name / f"{name}.yaml", folder / f"{name}.yaml"
 
 
 def available_robots() -> list[str]:
@@ -98,6 +100,7 @@ def available_robots() -> list[str]:
     for d in config_dirs():
         if d.is_dir():
             names.update(p.stem for p in d.glob("*.yaml"))
+            names.update(p.stem for p in d.glob("*/*.yaml") if p.stem == p.parent.name)
     return sorted(names)
 
 
@@ -115,9 +118,9 @@ def resolve_config_path(name_or_path: str | os.PathLike[str]) -> Path:
             raise ConfigError("robot config file not found", path=path)
         return path
     for d in config_dirs():
-        candidate = d / f"{text}.yaml"
-        if candidate.is_file():
-            return candidate
+        for candidate in _candidates(d, text):
+            if candidate.is_file():
+                return candidate
     raise ConfigError(
         f"no robot config named {text!r} (searched {', '.join(str(d) for d in config_dirs())})",
         allowed=", ".join(available_robots()) or "none found",

@@ -115,7 +115,7 @@ def _robot(name: str, buses: tuple[BusConfig, ...], joints: tuple[JointConfig, .
 def load_or_fixture(name: str) -> RobotConfig:
     """The real config ``configs/robots/<name>.yaml`` when it exists (a broken one fails the
     tests), else the fixture with the same buses, IDs and models."""
-    if not (REPO / "configs" / "robots" / f"{name}.yaml").is_file():
+    if not (REPO / "configs" / "robots" / name / f"{name}.yaml").is_file():
         return fixture_op3() if name == "op3" else fixture_poppy()
     from robot_retarget.robot.loader import load_robot_config
 

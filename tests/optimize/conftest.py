@@ -1,6 +1,6 @@
 """Fixtures for the optimizer tests: robots and retargeters, built (and JIT-compiled) once.
 
-``op3`` is the project's configs/robots/op3.yaml; ``twist_arm`` a small two-arm robot built from
+``op3`` is the project's configs/robots/op3/op3.yaml; ``twist_arm`` a small two-arm robot built from
 the dataclasses, with a forearm roll joint of ±172°, so that the twist bound (not a joint limit)
 is what stops a twisted forearm.
 """

@@ -20,8 +20,8 @@ def config_dir() -> Path:
 
 @pytest.fixture(scope="session")
 def op3_text() -> str:
-    """The text of configs/robots/op3.yaml, for writing broken variants."""
-    return (CONFIG_DIR / "op3.yaml").read_text(encoding="utf-8")
+    """The text of configs/robots/op3/op3.yaml, for writing broken variants."""
+    return (CONFIG_DIR / "op3" / "op3.yaml").read_text(encoding="utf-8")
 
 
 @pytest.fixture(scope="session")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -17,7 +18,11 @@ from robot_retarget.robot.loader import load_robot_config
 from robot_retarget.robot.servo_models import servo_model
 from robot_retarget.robot.servo_units import joint_rad_range
 
-CONFIG_FILES = sorted((Path(__file__).resolve().parents[2] / "configs" / "robots").glob("*.yaml"))
+# One folder per robot: <name>/<name>.yaml, README.md, LICENSE
+ROBOT_DIRS = sorted(
+    p for p in (Path(__file__).resolve().parents[2] / "configs" / "robots").iterdir()
+)
+CONFIG_FILES = [d / f"{d.name}.yaml" for d in ROBOT_DIRS]
 
 # Poppy's left knee is the one joint whose mapping deliberately differs from pypot's JSON
 # (its URDF limits are sign-flipped with respect to its own axis; see the YAML).
@@ -46,6 +51,35 @@ def test_every_config_loads(path: Path) -> None:
 
 def test_config_folder_is_not_empty() -> None:
     assert {p.stem for p in CONFIG_FILES} >= {"op3", "poppy_humanoid"}
+
+
+@pytest.mark.parametrize("folder", ROBOT_DIRS, ids=[d.name for d in ROBOT_DIRS])
+def test_every_robot_folder_has_its_config_readme_and_licence(folder: Path) -> None:
+    assert (folder / f"{folder.name}.yaml").is_file()
+    assert (folder / "README.md").read_text(encoding="utf-8").startswith("# ")
+    assert any(p.name.startswith("LICENSE") for p in folder.iterdir())
+
+
+def test_search_path_finds_user_robots_in_either_layout(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from robot_retarget.robot import loader
+
+    text = (CONFIG_FILES[0]).read_text(encoding="utf-8")
+    name = CONFIG_FILES[0].stem
+    flat, folders = tmp_path / "flat", tmp_path / "folders"
+    (folders / f"my_{name}").mkdir(parents=True)
+    flat.mkdir()
+    (flat / f"flat_{name}.yaml").write_text(
+        text.replace(f"name: {name}\n", f"name: flat_{name}\n", 1)
+    )
+    (folders / f"my_{name}" / f"my_{name}.yaml").write_text(
+        text.replace(f"name: {name}\n", f"name: my_{name}\n", 1)
+    )
+    monkeypatch.setenv(loader.CONFIG_DIR_ENV, os.pathsep.join([str(flat), str(folders)]))
+    assert load_robot_config(f"flat_{name}").name == f"flat_{name}"
+    assert load_robot_config(f"my_{name}").name == f"my_{name}"
+    assert {f"flat_{name}", f"my_{name}", name} <= set(loader.available_robots())
 
 
 def _urdf_revolute_joints(urdf: Path) -> dict[str, ET.Element]:

@@ -166,8 +166,9 @@ def test_missing_file_is_config_error(tmp_path: Path) -> None:
 def test_available_robots_and_resolution(config_dir: Path) -> None:
     names = available_robots()
     assert {"op3", "poppy_humanoid"} <= set(names)
-    assert resolve_config_path("op3") == config_dir / "op3.yaml"
-    assert resolve_config_path(str(config_dir / "op3.yaml")) == config_dir / "op3.yaml"
+    op3_file = config_dir / "op3" / "op3.yaml"
+    assert resolve_config_path("op3") == op3_file
+    assert resolve_config_path(str(op3_file)) == op3_file
 
 
 def test_env_dir_is_searched_first(

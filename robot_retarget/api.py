@@ -1,0 +1,59 @@
+"""Retarget a clip from Python in one call.
+
+    import robot_retarget as rr
+    result = rr.retarget("walk.bvh", robot="op3")
+    result.trajectory.write("walk_op3.npz")
+
+:func:`retarget` is what ``convert`` runs for one clip: the network's online step, the
+optimizer within every joint and velocity limit, and the safety layer, frame by frame at the
+robot's control rate (or ``fps``); the trajectory starts at the clip's first frame.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+from robot_retarget.motion.human_motion import HumanMotion, load_motion
+from robot_retarget.motion.trajectory import RobotTrajectory
+from robot_retarget.nn.inference import LoadedModel, load_model
+from robot_retarget.pipeline.convert import ClipResult, convert_motion
+from robot_retarget.pipeline.defaults import default_model_name
+from robot_retarget.pipeline.step import RetargetStep
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.loader import load_robot_config
+
+
+@dataclass(frozen=True)
+class RetargetResult:
+    """A retargeted clip: the robot trajectory and what happened on the way (frames, wall
+    time, the limit check, safety clips and solver fallbacks)."""
+
+    trajectory: RobotTrajectory
+    report: ClipResult
+    model: str
+
+
+def retarget(
+    clip_or_motion: HumanMotion | str | os.PathLike[str],
+    robot: RobotConfig | str | os.PathLike[str] = "op3",
+    model: LoadedModel | str | os.PathLike[str] | None = None,
+    *,
+    fps: float | None = None,
+) -> RetargetResult:
+    """Retarget a BVH file (or a loaded :class:`HumanMotion`) to ``robot`` (a name, a YAML path
+    or a loaded config) with ``model`` (a name or checkpoint path; default: the shipped
+    default), at ``fps`` (default: the robot's control rate)."""
+    motion = (
+        clip_or_motion
+        if isinstance(clip_or_motion, HumanMotion)
+        else load_motion(os.fspath(clip_or_motion))
+    )
+    config = robot if isinstance(robot, RobotConfig) else load_robot_config(robot)
+    if isinstance(model, LoadedModel):
+        loaded = model
+    else:
+        loaded = load_model(os.fspath(model) if model is not None else default_model_name())
+    step = RetargetStep(config, loaded, motion.skeleton)
+    result = convert_motion(motion, step, fps=fps)
+    return RetargetResult(result.trajectory, result, loaded.name)

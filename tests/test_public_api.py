@@ -1,0 +1,59 @@
+"""The public API: lazy (no torch or casadi on import), complete; three lines retarget a clip."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robot_retarget as rr
+
+REPO = Path(__file__).resolve().parents[1]
+CLIP = REPO / "tests" / "fixtures" / "motion" / "tiny_walk.bvh"
+
+
+def test_import_loads_neither_torch_nor_casadi() -> None:
+    code = (
+        "import sys, robot_retarget\n"
+        "heavy = [m for m in ('torch', 'casadi', 'dynamixel_sdk', 'serial') if m in sys.modules]\n"
+        "print(','.join(heavy))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
+
+
+def test_every_exported_name_resolves() -> None:
+    assert set(rr.__all__) == {"__version__", *rr._EXPORTS}
+    for name in rr._EXPORTS:
+        assert getattr(rr, name) is not None, name
+    assert "retarget" in dir(rr)
+
+
+def test_unknown_names_raise_attribute_error() -> None:
+    with pytest.raises(AttributeError, match="no_such_thing"):
+        rr.no_such_thing  # type: ignore[attr-defined]  # noqa: B018
+
+
+def test_three_lines_retarget_a_clip(tmp_path: Path) -> None:
+    result = rr.retarget(CLIP, robot="op3")
+    out = result.trajectory.write(tmp_path / "walk_op3.npz")
+    traj = rr.RobotTrajectory.read(out)
+    config = rr.load_robot("op3")
+    assert traj.joint_names == config.joint_names
+    assert traj.fps == config.control_rate_hz
+    assert result.report.limits.ok
+    assert result.model == "default"
+    # Not the init pose held still: the robot moves with the clip.
+    assert float(np.ptp(traj.q, axis=0).max()) > 0.1
+
+
+def test_retarget_takes_a_loaded_motion_robot_and_model() -> None:
+    motion = rr.load_motion(CLIP)
+    config = rr.load_robot("poppy_humanoid")
+    result = rr.retarget(motion, robot=config, model=rr.load_model("copy"), fps=25.0)
+    assert result.trajectory.fps == 25.0
+    assert result.model == "copy"
+    assert result.report.limits.ok
