@@ -1,4 +1,5 @@
-"""Robot configuration: frozen dataclasses, the validated form of ``configs/robots/<name>/<name>.yaml``.
+"""Robot configuration: frozen dataclasses, the validated form of a robot YAML
+(``configs/robots/<name>/<name>.yaml``).
 
 The loader (``robot_retarget.robot.loader.load_robot_config``) builds these and validates
 everything; stages downstream never see an invalid config. Joint order in ``joints`` is the

@@ -1,4 +1,5 @@
-"""Load and validate robot configs (``configs/robots/<name>/<name>.yaml``) into :class:`RobotConfig`.
+"""Load and validate robot configs (``configs/robots/<name>/<name>.yaml``) into
+:class:`RobotConfig`.
 
 Every mistake raises :class:`~robot_retarget.errors.ConfigError` naming the file, the key as a
 dotted path (``joints[3].limits.lower``) and what is allowed. Nothing invalid gets past here.
