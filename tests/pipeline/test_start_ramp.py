@@ -16,56 +16,8 @@ from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.loader import load_robot_config
 from robot_retarget.sim.backend import SimBackend
-from robot_retarget.skeleton.skeleton import Skeleton
-from robot_retarget.sources.base import MotionSource, SourceFrame, SourceStats
-from tests.pipeline.fake_clock import FakeClock
-
-
-class ScriptedSource(MotionSource):
-    """Frames of a clip, each delivered at its own clip time, except inside ``gaps`` (clip
-    seconds, half-open) where the sender is silent."""
-
-    def __init__(self, motion: HumanMotion, gaps: tuple[tuple[float, float], ...] = ()) -> None:
-        self.motion = motion
-        self.gaps = gaps
-        self.stats = SourceStats()
-        self._t0: float | None = None
-        self._next = 0
-
-    @property
-    def skeleton(self) -> Skeleton:
-        return self.motion.skeleton
-
-    @property
-    def nominal_fps(self) -> float:
-        return self.motion.fps
-
-    @property
-    def finished(self) -> bool:
-        return self._next >= self.motion.num_frames
-
-    def start(self) -> None:
-        self._t0 = None
-        self._next = 0
-
-    def stop(self) -> None:
-        pass
-
-    def poll(self, now_s: float) -> list[SourceFrame]:
-        if self._t0 is None:
-            self._t0 = now_s
-        out = []
-        while self._next < self.motion.num_frames:
-            t = self._next / self.motion.fps
-            if self._t0 + t > now_s:
-                break
-            if not any(a <= t < b for a, b in self.gaps):
-                m, k = self.motion, self._next
-                out.append(SourceFrame(m.local_quats[k], m.root_pos[k], t, k, self._t0 + t))
-            self._next += 1
-        self.stats.received += len(out)
-        self.stats.accepted += len(out)
-        return out
+from robot_retarget.sources.base import MotionSource
+from tests.pipeline.scripted import FakeClock, ScriptedSource
 
 
 @pytest.fixture(scope="module", params=["op3", "poppy_humanoid"])
