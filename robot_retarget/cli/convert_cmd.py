@@ -2,8 +2,12 @@
 
 INPUT is a BVH file or a folder (every .bvh inside is converted, the folder structure kept
 under OUT). Each frame goes through the live path's step (network → optimizer → safety), see
-robot_retarget.pipeline.convert. Existing outputs are kept unless --force; a clip that fails is
-reported and the others still convert; the exit code is 1 when any clip failed.
+robot_retarget.pipeline.convert. Every output path is checked before any work starts
+(robot_retarget.cli.output_paths): an output is never an input (not even with --force), no two
+outputs share a path, existing outputs are kept unless --force, a file's folder must exist and
+be writable (folder outputs are created). A clip's outputs are written atomically, all or none.
+A clip that fails is reported and the others still convert; the exit code is 1 when any clip
+failed.
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ import argparse
 import sys
 import time
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TextIO
 
@@ -93,73 +98,116 @@ def _extra_path(base: Path | None, clip: Path, root: Path, suffix: str) -> Path 
     return base
 
 
-def _check_outputs(paths: list[Path | None], force: bool) -> None:
-    for p in paths:
-        if p is not None and p.exists() and not force:
-            raise MotionFormatError("the output already exists; pass --force to replace it", path=p)
+@dataclass(frozen=True)
+class _Job:
+    clip: Path
+    out: Path
+    preview: Path | None
+    bvh_out: Path | None
 
 
-def run(args: argparse.Namespace) -> int:
-    from robot_retarget.motion.human_motion import load_motion
-    from robot_retarget.nn.inference import load_model
-    from robot_retarget.pipeline.convert import convert_motion, output_paths
-    from robot_retarget.pipeline.defaults import default_model_name
-    from robot_retarget.pipeline.robot_bvh import write_robot_bvh
-    from robot_retarget.pipeline.step import RetargetStep
-    from robot_retarget.render.preview import check_preview_path, render_preview
-    from robot_retarget.robot.loader import load_robot_config
-    from robot_retarget.skeleton.canonical import default_canonical_skeleton
+def _plan(args: argparse.Namespace) -> list[_Job]:
+    """Every clip with its outputs, all checked before any work (robot_retarget.cli.
+    output_paths): suffixes, no output on an input or on another output, no overwrite
+    without --force, writable folders (folder outputs are created when missing)."""
+    from robot_retarget.cli.output_paths import Output, check_folder, check_outputs
+    from robot_retarget.pipeline.convert import output_paths
+    from robot_retarget.render.preview import FORMATS as PREVIEW_FORMATS
+    from robot_retarget.render.preview import check_preview_path
 
     src: Path = args.input
     if not src.exists():
         raise MotionFormatError("no such file or folder", path=src)
-    if src.is_dir():
-        suffix = "." + args.format
-    else:
-        suffix = args.out.suffix.lower()
-        if suffix not in _FORMATS:
-            raise MotionFormatError(
-                f"output must end in {', '.join(_FORMATS)}, got {suffix or '(none)'!r}",
-                path=args.out,
-            )
-    if args.fps is not None and not args.fps > 0:
-        raise RetargetError(f"--fps must be positive, got {args.fps}")
+    folder = src.is_dir()
+    suffix = "." + args.format if folder else args.out.suffix.lower()
     pairs = output_paths(src, args.out, suffix)
     if not pairs:
         raise MotionFormatError("no .bvh files in this folder", path=src)
+    jobs = [
+        _Job(
+            clip,
+            out,
+            _extra_path(args.preview, clip, src, ".gif"),
+            _extra_path(args.bvh_out, clip, src, ".bvh"),
+        )
+        for clip, out in pairs
+    ]
+    if folder:
+        for option, base in (("--out", args.out), ("--preview", args.preview),
+                             ("--bvh-out", args.bvh_out)):  # fmt: skip
+            if base is not None:
+                check_folder(base, option=option, create=True)
+    outputs: list[Output] = []
+    for job in jobs:
+        outputs.append(Output("--out", job.out, _FORMATS, make_folders=folder))
+        if job.preview is not None:
+            outputs.append(Output("--preview", job.preview, PREVIEW_FORMATS, folder))
+        if job.bvh_out is not None:
+            outputs.append(Output("--bvh-out", job.bvh_out, (".bvh",), folder))
+    check_outputs(outputs, inputs=[job.clip for job in jobs], force=args.force)
+    if jobs[0].preview is not None:
+        check_preview_path(jobs[0].preview, overwrite=True)  # MP4 needs ffmpeg
+    return jobs
+
+
+def run(args: argparse.Namespace) -> int:
+    from robot_retarget.cli.output_paths import StagedWrites
+    from robot_retarget.motion.human_motion import load_motion
+    from robot_retarget.nn.inference import load_model
+    from robot_retarget.pipeline.convert import convert_motion
+    from robot_retarget.pipeline.defaults import default_model_name
+    from robot_retarget.pipeline.robot_bvh import write_robot_bvh
+    from robot_retarget.pipeline.step import RetargetStep
+    from robot_retarget.render.preview import render_preview
+    from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.skeleton.canonical import default_canonical_skeleton
+
+    if args.fps is not None and not args.fps > 0:
+        raise RetargetError(f"--fps must be positive, got {args.fps}")
+    jobs = _plan(args)
+    folder = args.input.is_dir()
     config = load_robot_config(args.robot)
     model = load_model(args.model or default_model_name())
-    print(f"robot {config.name}, model {model.name}, {len(pairs)} clip(s)", file=sys.stderr)
+    print(f"robot {config.name}, model {model.name}, {len(jobs)} clip(s)", file=sys.stderr)
     step = RetargetStep(config, model, default_canonical_skeleton())
     reports: list[ClipReport] = []
     t_all = time.perf_counter()
-    for k, (clip, out) in enumerate(pairs):
-        preview = _extra_path(args.preview, clip, src, ".gif")
-        bvh_out = _extra_path(args.bvh_out, clip, src, ".bvh")
+    for k, job in enumerate(jobs):
+        clip, out = job.clip, job.out
         try:
-            _check_outputs([out, preview, bvh_out], args.force)
-            if preview is not None:
-                check_preview_path(preview, overwrite=args.force)
             motion = load_motion(clip, max_frames=args.max_frames)
-            label = f"[{k + 1}/{len(pairs)}] {clip.name}"
+            label = f"[{k + 1}/{len(jobs)}] {clip.name}"
             result = convert_motion(motion, step, fps=args.fps, progress=ProgressBar(label))
-            out.parent.mkdir(parents=True, exist_ok=True)
-            result.trajectory.write(out, overwrite=args.force)
-            if bvh_out is not None:
-                bvh_out.parent.mkdir(parents=True, exist_ok=True)
-                write_robot_bvh(bvh_out, config, result.trajectory, overwrite=args.force)
-            if preview is not None:
-                preview.parent.mkdir(parents=True, exist_ok=True)
-                render_preview(
-                    preview,
-                    motion.positions(),
-                    motion.fps,
-                    config,
-                    result.trajectory.q,
-                    result.trajectory.fps,
-                    title=f"{clip.name} → {config.name} ({model.name})",
-                    overwrite=args.force,
+            traj = result.trajectory
+            # All of a clip's outputs, or none: each is written to a temporary file next to
+            # it and moved into place only when every one of them has been written.
+            with StagedWrites(force=args.force) as stage:
+                stage.write(
+                    out, partial(traj.write, overwrite=True), option="--out", make_folders=folder
                 )
+                if job.bvh_out is not None:
+                    stage.write(
+                        job.bvh_out,
+                        partial(write_robot_bvh, config=config, trajectory=traj, overwrite=True),
+                        option="--bvh-out",
+                        make_folders=folder,
+                    )
+                if job.preview is not None:
+                    stage.write(
+                        job.preview,
+                        partial(
+                            render_preview,
+                            human_positions=motion.positions(),
+                            human_fps=motion.fps,
+                            config=config,
+                            robot_q=traj.q,
+                            robot_fps=traj.fps,
+                            title=f"{clip.name} → {config.name} ({model.name})",
+                            overwrite=True,
+                        ),
+                        option="--preview",
+                        make_folders=folder,
+                    )
             reports.append(
                 ClipReport(
                     clip,

@@ -15,6 +15,7 @@ import argparse
 import dataclasses
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from robot_retarget.cli.convert_cmd import ProgressBar
+    from robot_retarget.cli.output_paths import Output, Writer, check_outputs, write_atomic
     from robot_retarget.errors import RetargetError
     from robot_retarget.motion.synthetic import demo_motion
     from robot_retarget.motion.trajectory import RobotTrajectory
@@ -61,12 +63,15 @@ def run(args: argparse.Namespace) -> int:
     stream_path = out_dir / f"demo_{args.robot}_stream.npz"
     bvh_path = out_dir / f"demo_{args.robot}.bvh"
     gif_path = out_dir / "demo_preview.gif"
-    for p in (traj_path, stream_path, bvh_path, gif_path):
-        if p.exists() and not args.force:
-            raise RetargetError(f"{p} already exists; pass --force to replace the demo outputs")
-    out_dir.mkdir(parents=True, exist_ok=True)
+    # Every output checked before any work (robot_retarget.cli.output_paths): the folder is
+    # created if missing and must be writable; nothing is replaced without --force.
+    outputs = [traj_path, stream_path, bvh_path] + ([] if args.no_preview else [gif_path])
+    check_outputs([Output("--out-dir", p, make_folders=True) for p in outputs], force=args.force)
     if not args.no_preview:
         check_preview_path(gif_path, overwrite=True)
+
+    def save(path: Path, writer: Writer) -> None:
+        write_atomic(path, writer, force=args.force, option="--out-dir", make_folders=True)
 
     def say(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
@@ -91,8 +96,11 @@ def run(args: argparse.Namespace) -> int:
     #    that the two can be compared frame by frame)
     played = dataclasses.replace(motion, fps=motion.fps * args.speed)
     offline = convert_motion(played, step, progress=ProgressBar("convert"))
-    offline.trajectory.write(traj_path, overwrite=True)
-    write_robot_bvh(bvh_path, config, offline.trajectory, overwrite=True)
+    save(traj_path, partial(offline.trajectory.write, overwrite=True))
+    save(
+        bvh_path,
+        partial(write_robot_bvh, config=config, trajectory=offline.trajectory, overwrite=True),
+    )
 
     # 2. live: replay → control loop → real SDK → simulated bus on a pty
     rate = config.control_rate_hz
@@ -115,7 +123,8 @@ def run(args: argparse.Namespace) -> int:
     q_start = config.safe_pose if result.start_q is None else result.start_q
     streamed = np.array([e.q for e in log]) if log else np.zeros((0, config.num_joints))
     if log:
-        RobotTrajectory(config.joint_names, streamed, rate).write(stream_path, overwrite=True)
+        streamed_traj = RobotTrajectory(config.joint_names, streamed, rate)
+        save(stream_path, partial(streamed_traj.write, overwrite=True))
 
     # 3. checks
     limits = check_limits(config, streamed, 1.0 / rate, q_start=q_start)
@@ -151,16 +160,19 @@ def run(args: argparse.Namespace) -> int:
     # 4. preview
     if not args.no_preview:
         say("rendering the preview GIF…")
-        render_preview(
+        save(
             gif_path,
-            played.positions(),
-            played.fps,
-            config,
-            offline.trajectory.q,
-            offline.trajectory.fps,
-            title=f"built-in demo → {config.name} ({model.name})",
-            overwrite=True,
-            progress=ProgressBar("preview"),
+            partial(
+                render_preview,
+                human_positions=played.positions(),
+                human_fps=played.fps,
+                config=config,
+                robot_q=offline.trajectory.q,
+                robot_fps=offline.trajectory.fps,
+                title=f"built-in demo → {config.name} ({model.name})",
+                overwrite=True,
+                progress=ProgressBar("preview"),
+            ),
         )
 
     lines = [

@@ -1,10 +1,24 @@
-"""``doctor``: is the serial setup fit to drive a robot? Ports, servos, latency, cycle time."""
+"""``doctor``: is the serial setup fit to drive a robot? Ports, servos, latency, cycle time.
+
+Ports use the same syntax as ``stream`` (robot_retarget.cli.port_args): ``--port PATH`` for a
+one-bus robot, ``--port BUS=PATH`` once per bus otherwise; with ``--port`` only the buses it
+names are checked, without it every bus at its default port. ``--bus NAME`` (old syntax,
+deprecated) still works: it checks that bus, and a plain ``--port PATH`` is taken as
+``NAME=PATH``. A port that does not exist is a one-line error (exit code 1) before anything is
+checked; the exit code is 1 when a check finds a problem.
+"""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from typing import TYPE_CHECKING
 
+from robot_retarget.cli.port_args import add_port_argument, check_ports_exist, split_port
 from robot_retarget.errors import HardwareError
+
+if TYPE_CHECKING:
+    from robot_retarget.robot.config import RobotConfig
 
 NAME = "doctor"
 HELP = "Check serial ports, servos on a bus vs the robot config, FTDI latency and cycle time."
@@ -12,8 +26,10 @@ HELP = "Check serial ports, servos on a bus vs the robot config, FTDI latency an
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", help="robot config name or YAML path: ping and compare")
-    parser.add_argument("--port", help="serial port (default: the bus's default_port)")
-    parser.add_argument("--bus", help="only this bus of the robot (needed with --port on 2 buses)")
+    add_port_argument(parser)
+    parser.add_argument(
+        "--bus", help="deprecated: use --port BUS=PATH (checks only this bus of the robot)"
+    )
     parser.add_argument("--cycles", type=int, default=200, help="timed write+read cycles")
     parser.add_argument(
         "--scan-all",
@@ -22,34 +38,58 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _port_items(args: argparse.Namespace) -> list[str]:
+    """``--port`` items, with the deprecated ``--bus NAME`` folded in (``PATH`` → ``NAME=PATH``)."""
+    items = list(args.port)
+    if args.bus is not None:
+        print("warning: --bus is deprecated; use --port BUS=PATH", file=sys.stderr)
+        items = [item if "=" in item else f"{args.bus}={item}" for item in items]
+    return items
+
+
 def run(args: argparse.Namespace) -> int:
     from robot_retarget.hardware import doctor
 
     ports = doctor.serial_ports()
+    items = _port_items(args)
+    # Every argument checked before anything is printed or opened.
+    check_ports_exist(items, [info.device for info in ports])
+    config: RobotConfig | None = None
+    given: dict[str, str] = {}
+    if args.robot:
+        from robot_retarget.pipeline.backends import parse_ports
+        from robot_retarget.robot.loader import load_robot_config
+
+        config = load_robot_config(args.robot)
+        names = [b.name for b in config.buses]
+        if args.bus is not None and args.bus not in names:
+            raise HardwareError(
+                f"--bus {args.bus}: robot {config.name} has no such bus; buses: {names}"
+            )
+        given = parse_ports(config, items)  # unknown bus, or a plain PATH on several buses
+    else:
+        named = [item for item in items if split_port(item)[0] is not None]
+        if named or args.bus is not None:
+            what = f"--port {named[0]}" if named else f"--bus {args.bus}"
+            raise HardwareError(
+                f"{what}: naming a bus needs --robot R (the robot config defines the buses)"
+            )
     print("serial ports:")
     if not ports:
         print("  (none found: is the adapter plugged in?)")
     for info in ports:
         print(f"  {info.device}  {info.description}  [{info.hwid}]")
         print(f"    {doctor.latency_advice(info.device, doctor.latency_timer_ms(info.device))}")
-    if not args.robot:
-        if args.port:
-            print(doctor.latency_advice(args.port, doctor.latency_timer_ms(args.port)))
+    if config is None:
+        for item in items:
+            print(doctor.latency_advice(item, doctor.latency_timer_ms(item)))
         return 0
 
-    from robot_retarget.robot.loader import load_robot_config
-
-    config = load_robot_config(args.robot)
-    buses = [b for b in config.buses if args.bus in (None, b.name)]
-    if args.bus and not buses:
-        print(f"robot {config.name} has no bus {args.bus!r}: {[b.name for b in config.buses]}")
-        return 2
-    if args.port and len(buses) > 1:
-        print(f"robot {config.name} has {len(buses)} buses: say which one --port is (--bus NAME)")
-        return 2
+    wanted = set(given) | ({args.bus} if args.bus is not None else set())
+    buses = [b for b in config.buses if not wanted or b.name in wanted]
     ok = True
     for bus_cfg in buses:
-        port = args.port or bus_cfg.default_port
+        port = given.get(bus_cfg.name, bus_cfg.default_port)
         print(f"bus {bus_cfg.name}: {port}, Protocol {bus_cfg.protocol}, {bus_cfg.baud_rate} bps")
         print(f"  {doctor.latency_advice(port, doctor.latency_timer_ms(port))}")
         try:

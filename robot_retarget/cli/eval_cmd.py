@@ -11,12 +11,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
+
+from robot_retarget.cli.data_dir import add_data_argument
 
 NAME = "eval"
 HELP = "Evaluate retargeting models on validation subjects (errors, skate, denoising)."
-
-_DEFAULT_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -28,9 +27,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="model name (copy, copy-scaled, a shipped checkpoint) or checkpoint path / run "
         "folder; repeatable (default: copy, copy-scaled and the shipped default model)",
     )
-    parser.add_argument(
-        "--data", default=str(_DEFAULT_DATA), help=f"folder of BVH clips (default {_DEFAULT_DATA})"
-    )
+    add_data_argument(parser)
     parser.add_argument(
         "--robot",
         action="append",

@@ -11,17 +11,15 @@ import json
 import sys
 from pathlib import Path
 
+from robot_retarget.cli.data_dir import add_data_argument
+
 NAME = "eval-robot"
 HELP = "Score the whole pipeline on the robot against a position-IK baseline and the limit."
-
-_DEFAULT_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="op3", help="robot config name or path (default op3)")
-    parser.add_argument(
-        "--data", default=str(_DEFAULT_DATA), help=f"folder of BVH clips (default {_DEFAULT_DATA})"
-    )
+    add_data_argument(parser)
     parser.add_argument(
         "--model",
         default=None,

@@ -1,7 +1,9 @@
-"""``inspect FILE...``: describe motion files (skeleton family, mapping, frames, units).
+"""``inspect FILE|DIR...``: describe motion files (skeleton family, mapping, frames, units).
 
-Each file is reported on its own; a file that cannot be read gets a one-line error on stderr
-and the others are still reported. The exit code is 1 if any file failed.
+A folder stands for every .bvh file under it (subfolders included, sorted by path), as
+``convert`` reads folders. Each file is reported on its own; a file that cannot be read, a
+missing path or a folder without .bvh files gets a one-line error on stderr and the others are
+still reported. The exit code is 1 if any failed.
 """
 
 from __future__ import annotations
@@ -9,9 +11,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
-from robot_retarget.errors import RetargetError
+from robot_retarget.errors import MotionFormatError, RetargetError
 from robot_retarget.motion.bvh import read_bvh
 from robot_retarget.motion.canonicalize import canonicalize
 from robot_retarget.motion.units import UNIT_SCALES_M
@@ -22,7 +25,9 @@ HELP = "Describe motion files: skeleton, mapping, fps, units."
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("files", nargs="+", metavar="FILE", help="BVH files")
+    parser.add_argument(
+        "files", nargs="+", metavar="FILE|DIR", help="BVH files, or folders of BVH files"
+    )
     parser.add_argument(
         "--json", action="store_true", help="print a JSON list, one object per file"
     )
@@ -80,11 +85,29 @@ def format_text(info: dict[str, Any]) -> str:
     )
 
 
+def expand_paths(paths: list[str]) -> list[str | MotionFormatError]:
+    """Files as given; a folder → every .bvh under it (sorted); a folder without any, or a
+    missing path, → the error to report in its place."""
+    out: list[str | MotionFormatError] = []
+    for path in paths:
+        p = Path(path)
+        if not p.is_dir():
+            out.append(path)
+            continue
+        clips = sorted(c for c in p.rglob("*") if c.suffix.lower() == ".bvh" and c.is_file())
+        if not clips:
+            out.append(MotionFormatError("no .bvh files in this folder", path=p))
+        out.extend(str(c) for c in clips)
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     reports: list[dict[str, Any]] = []
     failed = 0
-    for path in args.files:
+    for path in expand_paths(args.files):
         try:
+            if isinstance(path, MotionFormatError):
+                raise path
             info = describe(path, unit=args.unit, keep_tpose=args.keep_tpose)
         except RetargetError as exc:
             failed += 1

@@ -1,12 +1,18 @@
 """``stream --robot ROBOT --source SOURCE --backend sim|dynamixel``: drive a robot live.
 
-SOURCE: ``replay:CLIP.bvh`` (real time; --loop, --speed), ``udp://127.0.0.1:9750`` (JSON or
-binary frames, wire format in robot_retarget.sources.wire) or ``tcp-bvh://HOST:PORT`` (a BVH
-stream from mocap software). Live sources use 127.0.0.1 unless --allow-remote; --token makes
-UDP senders prove they know a shared secret. The control loop, watchdog and safety rules are in
-robot_retarget.pipeline.loop; Ctrl-C (or SIGTERM) stops smoothly and switches the torque off.
-Live statistics go to stderr every --stats-every seconds and at exit; --record saves what was
-sent (after the safety layer, one row per control tick) as a trajectory file.
+SOURCE: ``replay:CLIP.bvh`` (real time; --loop, --speed), ``udp://127.0.0.1:9750`` (JSON or binary
+frames, wire format in robot_retarget.sources.wire) or ``tcp-bvh://HOST:PORT`` (a BVH stream from
+mocap software). Live sources use 127.0.0.1 unless --allow-remote; --token makes UDP senders prove
+they know a shared secret. --allow-remote is refused without --token, unless --insecure-no-token
+says that unauthenticated input is wanted (a tcp-bvh stream carries no token: it always needs
+--insecure-no-token to reach another host). The control loop, watchdog and safety rules are in
+robot_retarget.pipeline.loop; Ctrl-C (or SIGTERM) stops smoothly and switches the torque off. Live
+statistics and source warnings go to stderr (statistics every --stats-every seconds and at exit).
+--port: robot_retarget.cli.port_args (``PATH``, or ``BUS=PATH`` once per bus; a bus not named uses
+the config's default_port). --record saves what was sent (after the safety layer, one row per
+control tick) as a trajectory file; its path is checked before the robot moves
+(robot_retarget.cli.output_paths), and if it cannot be written at the end the recording goes to a
+fallback path that is printed.
 """
 
 from __future__ import annotations
@@ -14,9 +20,17 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from functools import partial
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from robot_retarget.pipeline.loop import LogEntry
 
 NAME = "stream"
 HELP = "Drive a robot (or the simulator) live from a replayed clip or a mocap stream."
@@ -30,12 +44,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="replay:CLIP.bvh | udp://127.0.0.1:9750 | tcp-bvh://127.0.0.1:PORT",
     )
     parser.add_argument("--backend", choices=("sim", "dynamixel"), default="sim")
-    parser.add_argument(
-        "--port",
-        action="append",
-        default=[],
-        help="serial port (PATH, or BUS=PATH per bus; default: the config's)",
-    )
+    add_port_argument(parser)
     parser.add_argument("--rate", type=float, help="control rate in Hz (default: the config's)")
     parser.add_argument("--duration", type=float, help="stop after S seconds")
     parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
@@ -45,7 +54,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--allow-remote",
         action="store_true",
-        help="allow a non-loopback bind/connect address (use with --token)",
+        help="allow a non-loopback bind/connect address (needs --token, or --insecure-no-token)",
+    )
+    parser.add_argument(
+        "--insecure-no-token",
+        action="store_true",
+        help="with --allow-remote: accept input from other hosts without a token (anyone who "
+        "can reach the port can move the robot)",
     )
     parser.add_argument(
         "--stats-every", type=float, default=5.0, help="print live statistics every S seconds"
@@ -77,15 +92,15 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise RetargetError(f"--{name} must be positive, got {value}")
+    _check_remote(args)
     if args.record is not None:
-        from robot_retarget.errors import MotionFormatError
-        from robot_retarget.motion.trajectory import FORMATS
-
-        if args.record.suffix.lower() not in FORMATS:
-            raise MotionFormatError(f"--record must end in {', '.join(FORMATS)}", path=args.record)
-        if args.record.exists() and not args.force:
-            raise MotionFormatError("already exists; pass --force to replace it", path=args.record)
+        _check_record(args)
     config = load_robot_config(args.robot)
+    if args.backend == "dynamixel":
+        from robot_retarget.pipeline.backends import parse_ports
+
+        parse_ports(config, args.port)  # unknown bus names, a plain PATH on several buses
+        check_ports_exist(args.port)
     source = open_source(
         args.source,
         loop=args.loop,
@@ -100,6 +115,8 @@ def run(args: argparse.Namespace) -> int:
 
     def report(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
+
+    source.stats.on_warning = report  # e.g. every packet dropped as out of order
 
     settings = LoopSettings(
         rate_hz=args.rate, duration_s=args.duration, report_every_s=args.stats_every
@@ -127,13 +144,66 @@ def run(args: argparse.Namespace) -> int:
     print(f"modes: {modes or 'none (no input arrived)'}")
     if result.interrupted:
         print("stopped by Ctrl-C: torque off")
-    if args.record is not None and result.log:
-        import numpy as np
-
-        from robot_retarget.motion.trajectory import RobotTrajectory
-
-        # One row per control tick (a missed tick leaves no row).
-        q = np.array([e.q for e in result.log])
-        traj = RobotTrajectory(config.joint_names, q, rate)
-        print(f"recorded {len(q)} commands to {traj.write(args.record, overwrite=args.force)}")
+    if args.record is not None:
+        _save_record(args.record, result.log, config.joint_names, rate, force=args.force)
     return 0
+
+
+def _check_remote(args: argparse.Namespace) -> None:
+    """--allow-remote needs --token, or an explicit --insecure-no-token."""
+    from robot_retarget.errors import SourceError
+
+    if args.insecure_no_token and args.token:
+        raise SourceError("--token and --insecure-no-token contradict each other; pass one")
+    if args.token and args.source.startswith("tcp-bvh://"):
+        raise SourceError(
+            "--token works with udp:// sources only (a tcp-bvh stream carries no token); for "
+            "a tcp-bvh server on another host pass --allow-remote --insecure-no-token"
+        )
+    network = args.source.startswith(("udp://", "tcp-bvh://"))
+    if network and args.allow_remote and not args.token and not args.insecure_no_token:
+        raise SourceError(
+            "--allow-remote without --token would let anyone who can reach the port move the "
+            "robot; pass --token SECRET (senders must send it), or --insecure-no-token to "
+            "accept input without one"
+        )
+
+
+def _check_record(args: argparse.Namespace) -> None:
+    """The --record path, before anything moves: suffix, folder exists and is writable, not
+    an existing file without --force, not the replayed clip."""
+    from robot_retarget.cli.output_paths import Output, check_outputs
+    from robot_retarget.motion.trajectory import FORMATS
+
+    inputs = [Path(args.source[len("replay:") :])] if args.source.startswith("replay:") else []
+    check_outputs([Output("--record", args.record, FORMATS)], inputs=inputs, force=args.force)
+
+
+def _save_record(
+    path: Path,
+    log: Sequence[LogEntry],
+    joint_names: tuple[str, ...],
+    rate_hz: float,
+    *,
+    force: bool,
+) -> None:
+    """Write the recording atomically; if its path fails now, to a fallback path (printed)."""
+    if not log:
+        print(f"nothing recorded (no command was sent): {path} not written")
+        return
+    import numpy as np
+
+    from robot_retarget.cli.output_paths import save_with_fallback
+    from robot_retarget.motion.trajectory import RobotTrajectory
+
+    # One row per control tick (a missed tick leaves no row).
+    q = np.array([e.q for e in log])
+    traj = RobotTrajectory(joint_names, q, rate_hz)
+
+    def warn(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    written = save_with_fallback(
+        path, partial(traj.write, overwrite=True), force=force, option="--record", warn=warn
+    )
+    print(f"recorded {len(q)} commands to {written}")

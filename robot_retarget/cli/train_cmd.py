@@ -14,12 +14,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from robot_retarget.cli.data_dir import add_data_argument
 from robot_retarget.errors import RetargetError
 
 NAME = "train"
 HELP = "Train a retargeting network (nkn, pmnet) on a folder of BVH clips."
-
-_DEFAULT_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
 
 
 class TrainArgumentError(RetargetError):
@@ -51,9 +50,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model", required=True, choices=("nkn", "pmnet", "residual"), help="network"
     )
-    parser.add_argument(
-        "--data", default=str(_DEFAULT_DATA), help=f"folder of BVH clips (default {_DEFAULT_DATA})"
-    )
+    add_data_argument(parser)
     parser.add_argument("--out", required=True, help="run folder, e.g. runs/pmnet-1")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out")
     parser.add_argument("--steps", type=int, default=20000, help="total optimisation steps")

@@ -3,7 +3,9 @@
 A source delivers :class:`SourceFrame` objects on the canonical skeleton. Network sources
 receive on their own thread into a bounded queue; the control loop calls :meth:`poll` once per
 tick and never blocks. Everything a source refuses (malformed, oversized, out-of-order,
-duplicate, NaN, wrong token, queue overflow) is counted in :class:`SourceStats`, never raised.
+duplicate, NaN, wrong token, queue overflow) is counted in :class:`SourceStats`, never raised;
+what the user must hear about at once (a sender whose every packet is dropped) is a warning
+there too (:meth:`SourceStats.warn`).
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 import threading
 from abc import ABC, abstractmethod
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import TracebackType
 
@@ -53,11 +56,15 @@ class SourceFrame:
 
 @dataclass
 class SourceStats:
-    """Counters of what a source accepted and dropped (by reason, see DROP_REASONS)."""
+    """Counters of what a source accepted and dropped (by reason, see DROP_REASONS), and the
+    warnings it raised. ``on_warning``, when set (the CLI sets it to its live report line),
+    is called with each warning as it happens, possibly from the source's receiver thread."""
 
     received: int = 0
     accepted: int = 0
     dropped: dict[str, int] = field(default_factory=lambda: dict.fromkeys(DROP_REASONS, 0))
+    warnings: list[str] = field(default_factory=list)
+    on_warning: Callable[[str], None] | None = field(default=None, repr=False, compare=False)
 
     @property
     def dropped_total(self) -> int:
@@ -66,12 +73,23 @@ class SourceStats:
     def drop(self, reason: str) -> None:
         self.dropped[reason] = self.dropped.get(reason, 0) + 1
 
+    def warn(self, message: str) -> None:
+        """Record a warning and pass it on to ``on_warning`` (live) when set."""
+        self.warnings.append(message)
+        if self.on_warning is not None:
+            self.on_warning(message)
+
     def summary(self) -> str:
         parts = [f"{k} {v}" for k, v in self.dropped.items() if v]
         detail = f" ({', '.join(parts)})" if parts else ""
+        warned = (
+            f"; {len(self.warnings)} warning(s), the last: {self.warnings[-1]}"
+            if self.warnings
+            else ""
+        )
         return (
             f"source: {self.received} received, {self.accepted} accepted, "
-            f"{self.dropped_total} dropped{detail}"
+            f"{self.dropped_total} dropped{detail}{warned}"
         )
 
 
@@ -101,25 +119,69 @@ class FrameQueue:
 
 
 class SequenceFilter:
-    """Accepts frames whose sequence number and timestamp increase; counts the rest.
+    """Accepts frames whose sequence number and timestamp both increase; counts the rest.
 
-    Sequence number 0 after a larger one starts a new stream (the sender restarted).
+    The rule, per frame, against the last accepted one (``seq`` / ``t_s``):
+
+    - the same sequence number: dropped as ``duplicate``;
+    - sequence number and timestamp both larger: accepted;
+    - the sender restarted, and the frame accepted as the first of a new stream, when its
+      sequence number is 0 after a larger one, or when its sequence number went back *and*
+      its timestamp went back by more than ``restart_backstep_s`` (default 0.5 s): the
+      network delays a datagram by a few frames at most, a restarted sender's clock starts
+      over. (A sender that restarted less than 0.5 s after its first frame is dropped until
+      its sequence and clock pass the old ones, i.e. for less than 0.5 s.)
+    - anything else: dropped as ``out_of_order`` (a late datagram; a sender that restarted its
+      sequence numbers but not its clock; two senders on one port).
+
+    ``warn_after`` (default 30) consecutive ``out_of_order`` drops raise a warning through
+    :meth:`SourceStats.warn` (printed live by the CLI), again every ``10 × warn_after``
+    further drops while it lasts: a sender whose every packet is dropped is never silent.
     """
 
-    def __init__(self, stats: SourceStats) -> None:
+    def __init__(
+        self, stats: SourceStats, *, restart_backstep_s: float = 0.5, warn_after: int = 30
+    ) -> None:
+        if warn_after < 1:
+            raise ValueError(f"warn_after must be at least 1, got {warn_after}")
         self._stats = stats
+        self.restart_backstep_s = restart_backstep_s
+        self.warn_after = warn_after
+        self.restarts = 0
         self._last_seq: int | None = None
         self._last_t: float | None = None
+        self._streak = 0  # consecutive out_of_order drops
+
+    def _is_restart(self, seq: int, t_s: float) -> bool:
+        if self._last_seq is None or self._last_t is None:
+            return False
+        if seq == 0 and self._last_seq > 0:
+            return True
+        return seq < self._last_seq and t_s < self._last_t - self.restart_backstep_s
 
     def accept(self, seq: int, t_s: float) -> bool:
-        restart = seq == 0 and self._last_seq is not None and self._last_seq > 0
-        if self._last_seq is not None and self._last_t is not None and not restart:
+        if self._is_restart(seq, t_s):
+            self.restarts += 1
+        elif self._last_seq is not None and self._last_t is not None:
             if seq == self._last_seq:
                 self._stats.drop("duplicate")
                 return False
             if seq < self._last_seq or t_s <= self._last_t:
                 self._stats.drop("out_of_order")
+                self._streak += 1
+                if self._streak == self.warn_after or (
+                    self._streak > self.warn_after
+                    and (self._streak - self.warn_after) % (10 * self.warn_after) == 0
+                ):
+                    self._stats.warn(
+                        f"source: {self._streak} packets in a row dropped as out of order "
+                        f"(seq {seq} at t {t_s:.3f} s, last accepted seq {self._last_seq} at "
+                        f"t {self._last_t:.3f} s): if the sender restarted, restart its "
+                        "timestamps too (or its sequence numbers at 0); or is a second sender "
+                        "using this port?"
+                    )
                 return False
+        self._streak = 0
         self._last_seq = seq
         self._last_t = t_s
         return True

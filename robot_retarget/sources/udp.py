@@ -1,9 +1,12 @@
 """UdpSource: canonical-joint frames over UDP (wire format: robot_retarget.sources.wire).
 
 Binds 127.0.0.1 by default; any other address needs ``allow_remote=True`` (the CLI's explicit
-flag), and then a shared ``token`` is strongly advised: packets without the right token are
-dropped. A receiver thread decodes, checks and converts each datagram and puts frames in a
-bounded queue; nothing a sender does can raise in, or stall, the control loop.
+flag), and then a shared ``token`` is strongly advised (the CLI refuses --allow-remote without
+--token unless --insecure-no-token is given): packets without the right token are dropped.
+Sequence numbers and timestamps are checked by ``SequenceFilter`` (robot_retarget.sources.base;
+its docstring has the rule for a sender that restarts). A receiver thread decodes, checks and
+converts each datagram and puts frames in a bounded queue; nothing a sender does can raise in,
+or stall, the control loop.
 """
 
 from __future__ import annotations
@@ -49,7 +52,8 @@ def check_bind_address(host: str, allow_remote: bool, what: str) -> None:
     if not is_loopback(host) and not allow_remote:
         raise SourceError(
             f"{what} address {host} is not loopback; live sources bind 127.0.0.1 by default. "
-            "Pass --allow-remote (and preferably --token SECRET) to accept other hosts"
+            "Pass --allow-remote with --token SECRET (or --insecure-no-token) to accept other "
+            "hosts"
         )
 
 

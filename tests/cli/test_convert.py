@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from robot_retarget.cli import convert_cmd
+from robot_retarget.cli.output_paths import OutputPathError
 from robot_retarget.errors import MotionFormatError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.pipeline.convert import check_limits
@@ -96,9 +97,77 @@ def test_existing_output_needs_force(tmp_path: Path) -> None:
     clip = str(FIXTURES / "tiny_walk.bvh")
     assert _run(clip, "--out", str(out), "--fps", "30") == 0
     stamp = out.stat().st_mtime_ns
-    assert _run(clip, "--out", str(out), "--fps", "30") == 1
+    with pytest.raises(OutputPathError, match="already exists; pass --force"):
+        _run(clip, "--out", str(out), "--fps", "30")
     assert out.stat().st_mtime_ns == stamp
     assert _run(clip, "--out", str(out), "--fps", "30", "--force") == 0
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+@pytest.mark.usefixtures("no_work")
+def test_an_output_never_replaces_an_input(tmp_path: Path) -> None:
+    src = tmp_path / "clips"
+    (src / "walks").mkdir(parents=True)
+    shutil.copy(FIXTURES / "tiny_walk.bvh", src / "walks" / "a.bvh")
+    shutil.copy(FIXTURES / "mixamo.bvh", src / "b.bvh")
+    before = _snapshot(src)
+    clip = src / "b.bvh"
+    with pytest.raises(OutputPathError, match="is the input") as e:
+        _run(str(clip), "--out", str(tmp_path / "b.npz"), "--bvh-out", str(clip), "--force")
+    assert (e.value.option, e.value.path, e.value.other) == ("--bvh-out", str(clip), str(clip))
+    with pytest.raises(OutputPathError, match="is the input"):  # the folder into itself
+        _run(str(src), "--out", str(src), "--bvh-out", str(src), "--force")
+    assert _snapshot(src) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["clips"]
+
+
+@pytest.mark.usefixtures("no_work")
+def test_no_two_outputs_on_one_path(tmp_path: Path) -> None:
+    clip = str(FIXTURES / "tiny_walk.bvh")
+    out = tmp_path / "t.npz"
+    with pytest.raises(OutputPathError, match="also the output of --out"):
+        _run(clip, "--out", str(out), "--bvh-out", str(out))
+    src = tmp_path / "in"
+    src.mkdir()
+    shutil.copy(FIXTURES / "tiny_walk.bvh", src / "walk.bvh")
+    shutil.copy(FIXTURES / "mixamo.bvh", src / "walk.BVH")  # both would be walk.npz
+    with pytest.raises(OutputPathError, match=r"walk\.npz: is also the output of --out"):
+        _run(str(src), "--out", str(tmp_path / "out"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in"]
+
+
+@pytest.mark.usefixtures("no_work")
+def test_unwritable_or_missing_folders_are_refused_before_work(
+    tmp_path: Path, read_only_dir: Path
+) -> None:
+    clip = str(FIXTURES / "tiny_walk.bvh")
+    out = tmp_path / "t.npz"
+    with pytest.raises(OutputPathError, match=r"--preview .*not writable"):
+        _run(clip, "--out", str(out), "--preview", str(read_only_dir / "t.gif"))
+    with pytest.raises(OutputPathError, match=r"--out .*no such folder"):
+        _run(clip, "--out", str(tmp_path / "missing" / "t.npz"))
+    with pytest.raises(OutputPathError, match=r"--bvh-out .*not writable"):
+        _run(str(FIXTURES), "--out", str(tmp_path / "o"), "--bvh-out", str(read_only_dir / "b"))
+    assert list(tmp_path.iterdir()) == [read_only_dir]
+
+
+def test_a_failed_output_leaves_no_partial_outputs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def broken_renderer(path: Path, *args: object, **kwargs: object) -> Path:
+        Path(path).write_bytes(b"GIF89a half")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("robot_retarget.render.preview.render_preview", broken_renderer)
+    clip = str(FIXTURES / "tiny_walk.bvh")
+    rc = _run(clip, "--out", str(tmp_path / "t.npz"), "--bvh-out", str(tmp_path / "t.bvh"),
+              "--preview", str(tmp_path / "t.gif"), "--fps", "30")  # fmt: skip
+    assert rc == 1
+    assert list(tmp_path.iterdir()) == []  # neither the trajectory nor the BVH, no temporaries
+    assert "--preview" in capsys.readouterr().err
 
 
 def test_preview_and_robot_bvh(tmp_path: Path) -> None:
@@ -113,7 +182,7 @@ def test_preview_and_robot_bvh(tmp_path: Path) -> None:
 
 def test_bad_arguments(tmp_path: Path) -> None:
     clip = str(FIXTURES / "tiny_walk.bvh")
-    with pytest.raises(MotionFormatError, match="must end in"):
+    with pytest.raises(OutputPathError, match="must end in"):
         _run(clip, "--out", str(tmp_path / "t.txt"))
     with pytest.raises(MotionFormatError, match="no such file"):
         _run(str(tmp_path / "missing.bvh"), "--out", str(tmp_path / "t.npz"))

@@ -9,6 +9,7 @@ import pytest
 from PIL import Image
 
 from robot_retarget.cli import demo_cmd
+from robot_retarget.cli.output_paths import OutputPathError
 from robot_retarget.errors import RetargetError
 from robot_retarget.motion.trajectory import RobotTrajectory
 
@@ -41,3 +42,15 @@ def test_short_demo_passes_its_checks(tmp_path: Path, capsys: pytest.CaptureFixt
 def test_bad_arguments(tmp_path: Path) -> None:
     with pytest.raises(RetargetError, match="--seconds"):
         demo_cmd.run(_args("--out-dir", str(tmp_path), "--seconds", "20"))
+
+
+@pytest.mark.usefixtures("no_work")
+def test_unwritable_out_dir_is_refused_before_work(tmp_path: Path, read_only_dir: Path) -> None:
+    with pytest.raises(OutputPathError, match=r"--out-dir .*not writable"):
+        demo_cmd.run(_args("--out-dir", str(read_only_dir)))
+    with pytest.raises(OutputPathError, match=r"--out-dir .*not writable"):
+        demo_cmd.run(_args("--out-dir", str(read_only_dir / "new")))
+    (tmp_path / "a_file").write_text("x")
+    with pytest.raises(OutputPathError, match="is a file, not a folder"):
+        demo_cmd.run(_args("--out-dir", str(tmp_path / "a_file")))
+    assert list(read_only_dir.iterdir()) == []

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -101,3 +102,28 @@ def test_json_with_a_failure_still_lists_the_others(
     assert rc == 1
     assert [r["family"] for r in json.loads(captured.out)] == ["CMU ASF"]
     assert captured.err.count("\n") == 1
+
+
+def test_a_folder_is_every_bvh_under_it_sorted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    clips = tmp_path / "clips"
+    (clips / "sub").mkdir(parents=True)
+    shutil.copy(FIXTURES / "mixamo.bvh", clips / "b.bvh")
+    shutil.copy(FIXTURES / "tiny_walk.bvh", clips / "a.BVH")
+    shutil.copy(FIXTURES / "asf_names.bvh", clips / "sub" / "c.bvh")
+    (clips / "notes.txt").write_text("not a clip")
+    (tmp_path / "empty").mkdir()
+    rc = main(["inspect", "--json", str(clips), str(tmp_path / "empty")])
+    captured = capsys.readouterr()
+    assert rc == 1  # the empty folder
+    reports = json.loads(captured.out)
+    assert [Path(r["file"]).relative_to(clips).as_posix() for r in reports] == [
+        "a.BVH",
+        "b.bvh",
+        "sub/c.bvh",
+    ]
+    assert [r["family"] for r in reports] == ["CMU MotionBuilder", "Mixamo", "CMU ASF"]
+    errors = captured.err.strip().splitlines()
+    assert len(errors) == 1
+    assert "empty: no .bvh files in this folder" in errors[0]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -17,7 +18,9 @@ import numpy as np
 import pytest
 
 from robot_retarget.cli import stream_cmd
-from robot_retarget.errors import MotionFormatError, SourceError
+from robot_retarget.cli.output_paths import OutputPathError
+from robot_retarget.cli.port_args import PortNotFoundError
+from robot_retarget.errors import HardwareError, SourceError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.pipeline.convert import check_limits
 from robot_retarget.robot.loader import load_robot_config
@@ -44,7 +47,7 @@ def test_replay_into_the_simulator(capsys: pytest.CaptureFixture[str], tmp_path:
     config = load_robot_config("op3")
     assert traj.num_frames > 100
     assert check_limits(config, traj.q, 1 / traj.fps, q_start=config.init_pose).ok
-    with pytest.raises(MotionFormatError, match="--force"):
+    with pytest.raises(OutputPathError, match="--force"):
         stream_cmd.run(args)
     out = capsys.readouterr()
     assert "latency median" in out.out
@@ -62,6 +65,102 @@ def test_replay_into_the_simulator(capsys: pytest.CaptureFixture[str], tmp_path:
 def test_unsafe_or_unknown_sources_are_refused(source: str, match: str) -> None:
     with pytest.raises(SourceError, match=match):
         stream_cmd.run(_args("--source", source))
+
+
+@pytest.mark.usefixtures("no_work")
+def test_allow_remote_needs_a_token_or_an_explicit_insecure_flag(tmp_path: Path) -> None:
+    for source in ("udp://0.0.0.0:9750", "tcp-bvh://192.168.3.3:7001"):
+        with pytest.raises(SourceError, match="--allow-remote without --token"):
+            stream_cmd.run(_args("--source", source, "--allow-remote"))
+    with pytest.raises(SourceError, match="udp:// sources only"):
+        stream_cmd.run(_args("--source", "tcp-bvh://192.168.3.3:7001", "--allow-remote",
+                             "--token", "s3cret"))  # fmt: skip
+    with pytest.raises(SourceError, match="contradict"):
+        stream_cmd.run(_args("--source", "udp://0.0.0.0:0", "--allow-remote", "--token", "s",
+                             "--insecure-no-token"))  # fmt: skip
+    # Accepted either way: the next check (the --record folder) is the one that refuses.
+    missing = str(tmp_path / "missing" / "r.npz")
+    for extra in (["--token", "s3cret"], ["--insecure-no-token"]):
+        with pytest.raises(OutputPathError, match="no such folder"):
+            stream_cmd.run(_args("--source", "udp://0.0.0.0:0", "--allow-remote", *extra,
+                                 "--record", missing))  # fmt: skip
+
+
+@pytest.mark.usefixtures("no_work")
+def test_record_path_is_checked_before_the_robot_moves(tmp_path: Path, read_only_dir: Path) -> None:
+    clip = f"replay:{FIXTURES / 'tiny_walk.bvh'}"
+    with pytest.raises(OutputPathError, match=r"--record .*no such folder"):
+        stream_cmd.run(_args("--source", clip, "--record", str(tmp_path / "nope" / "r.npz")))
+    with pytest.raises(OutputPathError, match=r"--record .*not writable"):
+        stream_cmd.run(_args("--source", clip, "--record", str(read_only_dir / "r.npz")))
+    with pytest.raises(OutputPathError, match="must end in"):
+        stream_cmd.run(_args("--source", clip, "--record", str(tmp_path / "r.bvh")))
+    (tmp_path / "r.npz").write_text("an earlier take")
+    with pytest.raises(OutputPathError, match="--force"):
+        stream_cmd.run(_args("--source", clip, "--record", str(tmp_path / "r.npz")))
+    assert (tmp_path / "r.npz").read_text() == "an earlier take"
+
+
+def test_recording_is_saved_elsewhere_when_its_folder_fails_at_the_end(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robot_retarget.pipeline.loop import ControlLoop, LoopResult
+
+    session = tmp_path / "session"
+    session.mkdir()
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    run_loop = ControlLoop.run
+
+    def run_then_lose_the_folder(self: ControlLoop) -> LoopResult:
+        result = run_loop(self)
+        shutil.rmtree(session)  # the folder went away while the robot moved
+        return result
+
+    monkeypatch.setattr(ControlLoop, "run", run_then_lose_the_folder)
+    args = _args("--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}", "--duration", "0.3",
+                 "--record", str(session / "take.csv"))  # fmt: skip
+    assert stream_cmd.run(args) == 0
+    saved = list(work.glob("take-*.csv"))
+    assert len(saved) == 1
+    assert RobotTrajectory.read(saved[0]).num_frames > 10
+    out = capsys.readouterr()
+    assert f"recorded {RobotTrajectory.read(saved[0]).num_frames} commands to {saved[0]}" in out.out
+    assert f"saved to {saved[0]} instead" in out.err
+
+
+def test_source_warnings_are_reported_live(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robot_retarget.pipeline.loop import ControlLoop, LoopResult
+
+    run_loop = ControlLoop.run
+
+    def warn_then_run(self: ControlLoop) -> LoopResult:
+        self.source.stats.warn("source: 30 packets in a row dropped as out of order")
+        return run_loop(self)
+
+    monkeypatch.setattr(ControlLoop, "run", warn_then_run)
+    args = _args("--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}", "--duration", "0.2")
+    assert stream_cmd.run(args) == 0
+    out = capsys.readouterr()
+    assert "source: 30 packets in a row dropped as out of order" in out.err  # live
+    assert "1 warning(s)" in out.out  # and in the source's summary at exit
+
+
+@pytest.mark.usefixtures("no_work")
+def test_ports_use_the_bus_syntax_and_must_exist() -> None:
+    clip = f"replay:{FIXTURES / 'tiny_walk.bvh'}"
+    with pytest.raises(PortNotFoundError, match="/dev/nonexistent does not exist"):
+        stream_cmd.run(_args("--source", clip, "--backend", "dynamixel",
+                             "--port", "/dev/nonexistent"))  # fmt: skip
+    with pytest.raises(HardwareError, match="give --port BUS=PATH"):
+        stream_cmd.run(_args("--robot", "poppy_humanoid", "--source", clip,
+                             "--backend", "dynamixel", "--port", "/dev/null"))  # fmt: skip
+    with pytest.raises(HardwareError, match="no bus 'legs'"):
+        stream_cmd.run(_args("--robot", "poppy_humanoid", "--source", clip,
+                             "--backend", "dynamixel", "--port", "legs=/dev/null"))  # fmt: skip
 
 
 def test_bad_numbers_are_refused() -> None:

@@ -201,6 +201,7 @@ def test_safe_pose_switches_torque_off_when_configured(
 
         def report(line: str) -> None:
             if line.startswith("[safe]") and "torque off" in line:
+                sim.settle()  # the torque-off Sync Write has no reply: let the bus apply it
                 at_release.append(sim.torque_on())  # what the bus holds at that moment
 
         source = ScriptedSource(demo.frames(0, 16), live=True)  # 0.5 s, then silent

@@ -50,3 +50,56 @@ def test_sequence_filter_reasons() -> None:
     assert stats.dropped["duplicate"] == 1
     assert stats.dropped["out_of_order"] == 2
     assert set(stats.dropped) == set(DROP_REASONS)
+
+
+def test_a_sender_restarting_its_sequence_and_clock_is_accepted() -> None:
+    stats = SourceStats()
+    f = SequenceFilter(stats)
+    for k in range(100, 110):
+        assert f.accept(k, 50.0 + k / 60)
+    assert f.accept(3, 0.05)  # seq back to a small number, not 0, and the clock restarted
+    assert f.accept(4, 0.07)
+    assert f.restarts == 1
+    assert not f.accept(2, 0.03)  # an old datagram of the new stream: still out of order
+    assert stats.dropped["out_of_order"] == 1
+    assert stats.warnings == []
+
+
+def test_a_late_datagram_is_not_a_restart() -> None:
+    stats = SourceStats()
+    f = SequenceFilter(stats)
+    assert f.accept(10, 1.0)
+    assert not f.accept(9, 0.98)  # a few frames late: both went back, but by < 0.5 s
+    assert f.restarts == 0
+    assert stats.dropped["out_of_order"] == 1
+
+
+def test_a_run_of_out_of_order_drops_warns_live() -> None:
+    stats = SourceStats()
+    live: list[str] = []
+    stats.on_warning = live.append
+    f = SequenceFilter(stats, warn_after=30)
+    assert f.accept(5000, 100.0)
+    # The sender restarted its sequence numbers but not its clock: every packet goes back in
+    # sequence, forward in time. Dropped (the rule), but never silently.
+    for k in range(1, 30):
+        assert not f.accept(k, 100.0 + k / 60)
+    assert live == []
+    assert not f.accept(30, 100.5)
+    assert len(live) == 1
+    assert "30 packets in a row dropped as out of order" in live[0]
+    assert "restart its timestamps" in live[0]
+    for k in range(31, 330):
+        f.accept(k, 100.5 + k / 60)
+    assert len(live) == 1
+    f.accept(330, 106.0)
+    assert len(live) == 2  # again every 10 × warn_after drops while it lasts
+    assert "330 packets in a row" in live[1]
+    assert stats.warnings == live
+    assert "2 warning(s), the last: source: 330 packets" in stats.summary()
+    assert f.accept(5001, 107.0)  # an accepted frame ends the run
+    for k in range(29):
+        f.accept(k + 1, 107.0 + k)
+    assert len(live) == 2
+    with pytest.raises(ValueError, match="warn_after"):
+        SequenceFilter(stats, warn_after=0)

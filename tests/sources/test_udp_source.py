@@ -77,6 +77,29 @@ def test_restart_with_sequence_zero_is_accepted(motion: HumanMotion) -> None:
     assert src.handle_packet(wire.encode_json("positions", 0, 0.0, pos), 0.0) is not None
 
 
+def test_restart_with_a_small_sequence_number_and_a_new_clock(motion: HumanMotion) -> None:
+    src = UdpSource("127.0.0.1", 0)
+    live: list[str] = []
+    src.stats.on_warning = live.append
+    pos = motion.positions()[0]
+    for k in range(1200, 1205):
+        assert src.handle_packet(wire.encode_json("positions", k, k / 60, pos), 0.0) is not None
+    # The sender restarted: its first packets got lost, its sequence resumes at 2, its clock
+    # restarted at 0 (both went back): a new stream, accepted from this packet.
+    frame = src.handle_packet(wire.encode_json("positions", 2, 0.033, pos), 0.0)
+    assert frame is not None
+    assert frame.seq == 2
+    assert src.stats.dropped["out_of_order"] == 0
+    # A sender that restarts its sequence but keeps its clock: dropped, with a live warning.
+    for k in range(3, 40):
+        assert src.handle_packet(wire.encode_json("positions", k, 1.0 + k / 60, pos), 0.0)
+    for k in range(1, 31):
+        assert src.handle_packet(wire.encode_json("positions", k, 2.0 + k / 60, pos), 0.0) is None
+    assert len(live) == 1
+    assert "dropped as out of order" in live[0]
+    assert src.stats.warnings == live
+
+
 def test_full_queue_drops_the_oldest(motion: HumanMotion) -> None:
     src = UdpSource("127.0.0.1", 0, max_queue=4)
     pos = motion.positions()[0]

@@ -1,0 +1,84 @@
+"""``doctor``: a missing port is a one-line error, and the ``--port BUS=PATH`` syntax of
+``stream`` (the old ``--bus`` still works) checked on Poppy's two simulated buses."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from robot_retarget.cli import doctor_cmd
+from robot_retarget.cli.main import main
+from robot_retarget.cli.port_args import PortNotFoundError
+from robot_retarget.errors import HardwareError
+from robot_retarget.robot.loader import load_robot_config
+from robot_retarget.sim.robot_bus import SimulatedRobotBus
+
+TIME_LIMIT_S = 90
+
+
+def _run(*argv: str) -> int:
+    parser = argparse.ArgumentParser()
+    doctor_cmd.configure(parser)
+    return doctor_cmd.run(parser.parse_args(list(argv)))
+
+
+def test_missing_port_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["doctor", "--port", "/dev/nonexistent"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""  # refused before anything else
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("error: serial port /dev/nonexistent does not exist")
+    with pytest.raises(PortNotFoundError) as e:
+        _run("--robot", "op3", "--port", "/dev/nonexistent")
+    assert e.value.port == "/dev/nonexistent"
+
+
+def test_bus_names_need_a_robot_and_must_exist() -> None:
+    with pytest.raises(HardwareError, match="needs --robot"):
+        _run("--port", "upper_body=/dev/null")
+    with pytest.raises(HardwareError, match="give --port BUS=PATH"):
+        _run("--robot", "poppy_humanoid", "--port", "/dev/null")
+    with pytest.raises(HardwareError, match="no bus 'legs'"):
+        _run("--robot", "poppy_humanoid", "--port", "legs=/dev/null")
+    with pytest.raises(HardwareError, match="--bus legs"):
+        _run("--robot", "poppy_humanoid", "--bus", "legs")
+
+
+def test_two_buses_with_the_stream_syntax(capsys: pytest.CaptureFixture[str]) -> None:
+    config = load_robot_config("poppy_humanoid")
+    with SimulatedRobotBus(config) as sim:
+        upper, lower = sim.ports["upper_body"], sim.ports["lower_body"]
+        both = _run("--robot", "poppy_humanoid", "--port", f"upper_body={upper}",
+                    "--port", f"lower_body={lower}", "--cycles", "3")  # fmt: skip
+        out_both = capsys.readouterr().out
+        one = _run("--robot", "poppy_humanoid", "--port", f"lower_body={lower}", "--cycles", "3")
+        out_one = capsys.readouterr().out
+        old = _run("--robot", "poppy_humanoid", "--bus", "upper_body", "--port", upper,
+                   "--cycles", "3")  # fmt: skip
+        out_old = capsys.readouterr()
+    assert both == 0, out_both
+    assert f"bus upper_body: {upper}" in out_both
+    assert f"bus lower_body: {lower}" in out_both
+    assert "doctor: OK" in out_both
+    assert one == 0, out_one
+    assert "bus upper_body" not in out_one  # only the buses named are checked
+    assert f"bus lower_body: {lower}" in out_one
+    assert old == 0, out_old.out
+    assert f"bus upper_body: {upper}" in out_old.out
+    assert "bus lower_body" not in out_old.out
+    assert "--bus is deprecated; use --port BUS=PATH" in out_old.err
+
+
+def test_stream_and_doctor_document_the_same_port_syntax() -> None:
+    from robot_retarget.cli import stream_cmd
+
+    helps = []
+    for module in (doctor_cmd, stream_cmd):
+        parser = argparse.ArgumentParser()
+        module.configure(parser)
+        action = next(a for a in parser._actions if "--port" in a.option_strings)
+        helps.append((action.help, action.metavar, type(action).__name__))
+    assert helps[0] == helps[1]
+    assert "BUS=PATH" in str(helps[0][0])
