@@ -132,6 +132,11 @@ def run(args: argparse.Namespace) -> int:
         old = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         result = loop.run()
+    except BaseException:
+        # The loop stopped on an error (torque is already off): keep what was recorded so far.
+        if args.record is not None:
+            _save_record(args.record, loop.log, config.joint_names, rate, force=args.force)
+        raise
     finally:
         if old is not None:
             signal.signal(signal.SIGTERM, old)

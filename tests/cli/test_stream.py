@@ -289,3 +289,27 @@ def test_second_ctrl_c_switches_off_at_once() -> None:
     assert "stopped by Ctrl-C" in out
     assert "interrupted: stopping smoothly" in err
     assert not any(torque)
+
+
+def test_a_recording_survives_an_error_that_stops_the_stream(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The bus fails mid-session: the error still reaches the user, and so does what was sent."""
+    from robot_retarget.errors import HardwareError
+    from robot_retarget.pipeline import backends
+    from robot_retarget.sim.backend import SimBackend
+
+    class Unplugged(SimBackend):
+        def send(self, cmd):  # type: ignore[no-untyped-def]
+            if len(self.sent) >= 40:
+                raise HardwareError("bus unplugged")
+            return super().send(cmd)
+
+    monkeypatch.setattr(backends, "open_backend", lambda config, *_: Unplugged(config))
+    record = tmp_path / "partial.npz"
+    args = _args("--robot", "op3", "--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}",
+                 "--backend", "sim", "--duration", "2.0", "--record", str(record))  # fmt: skip
+    with pytest.raises(HardwareError, match="unplugged"):
+        stream_cmd.run(args)
+    assert RobotTrajectory.read(record).num_frames == 40
+    assert f"recorded 40 commands to {record}" in capsys.readouterr().out
