@@ -25,6 +25,7 @@ from robot_retarget.hardware.safety import SafetyLayer
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.motion.trajectory import RobotTrajectory
+from robot_retarget.pipeline.floating_base import floating_base
 from robot_retarget.pipeline.recorder import RecordingBackend
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
@@ -105,8 +106,8 @@ def convert_motion(
     step.reset(config.init_pose)
     n = m.num_frames
     q = np.empty((n, config.num_joints))
-    root_pos = np.empty((n, 3))
-    root_quat = np.empty((n, 4))
+    root_pos = np.empty((0, 3))
+    root_quat = np.empty((0, 4))
     frame_ms = np.empty(n)
     t_start = time.perf_counter()
     for t in range(n):
@@ -117,18 +118,18 @@ def convert_motion(
         sent = safety.send(JointCommand(out.q, t * dt * _STAMP_STRETCH))
         frame_ms[t] = (time.perf_counter() - t0) * 1e3
         q[t] = sent.q
-        root_pos[t] = out.root_pos
-        root_quat[t] = out.root_quat
         if progress is not None:
             progress(t + 1, n)
     wall = time.perf_counter() - t_start
     safety.disconnect()
+    # The base link's pose in the robot's world (Z up, x forward), feet on the ground.
+    base = floating_base(config, m, q) if n else None
     traj = RobotTrajectory(
         joint_names=config.joint_names,
         q=q,
         fps=rate,
-        root_pos=root_pos,
-        root_quat=root_quat,
+        root_pos=base.root_pos if base is not None else root_pos,
+        root_quat=base.root_quat if base is not None else root_quat,
         t0=0.0,
         frame_ms=frame_ms,
     )

@@ -6,8 +6,12 @@ convention (Y up, facing +Z): robot root-frame vectors are turned by the config'
 axes. The rest pose is the robot's zero pose, so a link's BVH rotation is its posed world
 rotation times its zero-pose rotation transposed, and rest offsets are zero-pose position
 differences; this reproduces every link position exactly. The root moves with the
-trajectory's ``root_pos`` / ``root_quat`` when present (canonical axes, as convert writes them).
-Lengths in metres (Blender's BVH import scale 1.0 gives metres).
+trajectory's ``root_pos`` / ``root_quat`` when present: the base link's pose in the robot's
+Z-up, x-forward world (as convert writes it), turned into BVH axes (world x → BVH Z, y → X,
+z → Y). Euler angles are kept continuous from frame to frame (of the two ZYX triples of a
+rotation, and their 2π turns, the one nearest the previous frame's), so players that
+interpolate channels never spin a joint the long way round. Lengths in metres (Blender's BVH
+import scale 1.0 gives metres).
 """
 
 from __future__ import annotations
@@ -26,6 +30,27 @@ from robot_retarget.robot.kinematics import RobotKinematics
 
 _ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation")
 _JOINT_CHANNELS = ("Zrotation", "Yrotation", "Xrotation")
+
+
+# The robot's world (x forward, y left, z up) in BVH axes (X left, Y up, Z forward).
+WORLD_TO_BVH = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+
+
+def continuous_zyx(angles_rad: FloatArray) -> FloatArray:
+    """ZYX Euler angles (T, …, 3) made continuous along T: per frame the equivalent triple
+    (a, b, c) or (a + π, π − b, c + π), shifted by whole turns, nearest the previous frame's."""
+    out = np.array(angles_rad, dtype=np.float64, copy=True)
+    two_pi = 2.0 * np.pi
+    for t in range(1, len(out)):
+        prev = out[t - 1]
+        a = out[t]
+        b = a + np.array([np.pi, 0.0, np.pi])
+        b[..., 1] = np.pi - a[..., 1]
+        a = a + two_pi * np.round((prev - a) / two_pi)
+        b = b + two_pi * np.round((prev - b) / two_pi)
+        use_b = np.abs(b - prev).sum(axis=-1) < np.abs(a - prev).sum(axis=-1)
+        out[t] = np.where(use_b[..., None], b, a)
+    return out
 
 
 def robot_bvh_clip(config: RobotConfig, trajectory: RobotTrajectory) -> BvhClip:
@@ -54,14 +79,15 @@ def robot_bvh_clip(config: RobotConfig, trajectory: RobotTrajectory) -> BvhClip:
     posed = kin.link_transforms(trajectory.q)[:, order]  # (T, L, 4, 4)
     glob = c @ posed[..., :3, :3] @ np.swapaxes(rest_rot, -1, -2)  # (T, L, 3, 3)
     if trajectory.root_quat is not None:
-        root_rot = quat.to_matrix(trajectory.root_quat)  # canonical axes
+        # World (Z up) → BVH axes, of the base link's rotation as seen from its BVH rest frame.
+        root_rot = WORLD_TO_BVH @ quat.to_matrix(trajectory.root_quat) @ c.T
         glob = root_rot[:, None] @ glob
     local = glob.copy()
     for k in range(1, n_links):
         local[:, k] = np.swapaxes(glob[:, parents[k]], -1, -2) @ glob[:, k]
-    angles = np.degrees(euler.to_euler(quat.from_matrix(local), "ZYX"))  # (T, L, 3)
+    angles = np.degrees(continuous_zyx(euler.to_euler(quat.from_matrix(local), "ZYX")))
     root_pos = (
-        trajectory.root_pos
+        trajectory.root_pos @ WORLD_TO_BVH.T
         if trajectory.root_pos is not None
         else np.zeros((trajectory.num_frames, 3))
     )

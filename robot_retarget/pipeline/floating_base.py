@@ -1,0 +1,188 @@
+"""The robot's floating base: where its base link is in the world, frame by frame.
+
+Robotics tools place a robot by its base link's pose in a Z-up, x-forward, y-left world
+(REP-103; URDF, MJCF, MuJoCo, Isaac and GMR's motion files use it), metres, quaternions w-x-y-z.
+The performer's motion is Y-up, facing +Z, at human scale; this module turns it into that pose
+for the robot's own proportions, with its feet on the ground:
+
+- **orientation**: the performer's pelvis, rotation for rotation (heading and tilt), applied to
+  the robot's root frame through its config's up/forward axes;
+- **horizontal path**: the pelvis' ground track from the first frame, scaled by the leg-length
+  ratio (robot / performer: a 0.5 m robot takes proportionally shorter steps), plus a
+  correction that pins a foot in stance where it landed (below);
+- **height**: for each frame, the base height that puts the robot's lowest foot point (its
+  config's foot frames, e.g. OP3's soles) at the performer's lowest foot height above their
+  ground, scaled: z = 0 in stance; in a jump the robot leaves the ground as the performer did;
+  no foot point ever goes below z = 0.
+- **foot pinning**: a foot on the ground (within ``contact_m`` of z = 0) in two consecutive
+  frames must not slide: the base moves by the mean slip of such feet. Scaled human strides and
+  the robot's own leg kinematics never match exactly; this keeps a foot in stance planted, at
+  the price of a base path that differs from the scaled human one by what the robot's legs
+  really cover (a robot whose retargeted steps barely lift its feet shuffles: it travels less).
+
+Origin: the world origin is the ground point under the performer's pelvis at the first frame;
+the robot faces +x when the performer faces their own +Z (canonical forward).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.optimize.bone_model import foot_frames
+from robot_retarget.robot.canonical_skeleton import (
+    robot_canonical_skeleton,
+    robot_to_canonical_rotation,
+)
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.kinematics import RobotKinematics
+from robot_retarget.skeleton.canonical import Joint
+from robot_retarget.skeleton.skeleton import Skeleton
+
+FloatArray = npt.NDArray[np.float64]
+
+# Canonical human axes (X left, Y up, Z forward) → world (x forward, y left, z up).
+HUMAN_TO_WORLD = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+CONTACT_M = 0.01  # a foot point this close to the ground counts as standing on it
+_FOOT_JOINTS = (Joint.LeftFoot, Joint.RightFoot, Joint.LeftToeBase, Joint.RightToeBase)
+HUMAN_CONTACT_M = 0.05  # the performer's foot this close to their ground may be in stance…
+HUMAN_CONTACT_SPEED_M_S = 0.6  # …when it also moves slower than this (horizontal)
+_SIDE_JOINTS = {
+    "Left": (Joint.LeftFoot, Joint.LeftToeBase),
+    "Right": (Joint.RightFoot, Joint.RightToeBase),
+}
+_GROUND_PERCENTILE = 2.0  # the performer's ground: a low percentile of their lowest foot point
+
+
+@dataclass(frozen=True)
+class FloatingBase:
+    """Base link pose per frame: ``root_pos`` (T, 3) m and ``root_quat`` (T, 4) w-x-y-z in the
+    world; ``feet`` (T, F, 3) the robot's foot points in the world (for checks and metrics)."""
+
+    root_pos: FloatArray
+    root_quat: FloatArray
+    feet: FloatArray
+    foot_frames: tuple[str, ...]
+
+
+def foot_points(config: RobotConfig) -> tuple[str, ...]:
+    """The robot frames that touch the ground: every fixed frame on the links that carry its
+    mapped feet (OP3: sole centre and toe of each ankle-roll link)."""
+    ends = foot_frames(config)
+    if not ends:
+        raise ValueError(f"robot {config.name} maps no foot frames: no ground contact to keep")
+    parents = {f.name: f.parent_link for f in config.frames}
+    links = {parents.get(e) for e in ends}
+    return tuple(f.name for f in config.frames if f.parent_link in links) or ends
+
+
+def leg_length_m(skeleton: Skeleton) -> float:
+    """Hip → knee → ankle length of the canonical skeleton's left leg (metres)."""
+    off = skeleton.offsets
+    return float(np.linalg.norm(off[Joint.LeftLeg]) + np.linalg.norm(off[Joint.LeftFoot]))
+
+
+def floating_base(
+    config: RobotConfig,
+    motion: HumanMotion,
+    q: npt.ArrayLike,
+    *,
+    contact_m: float = CONTACT_M,
+    pin_feet: bool = True,
+) -> FloatingBase:
+    """The base link's world pose for joint angles ``q`` (T, J) retargeted from ``motion`` (T
+    frames at the same rate)."""
+    q_arr = np.asarray(q, dtype=np.float64)
+    n = motion.num_frames
+    if q_arr.shape != (n, config.num_joints):
+        raise ValueError(f"q must be ({n}, {config.num_joints}), got {q_arr.shape}")
+    feet = foot_points(config)
+    ratio = leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(motion.skeleton)
+
+    # Orientation: root frame → canonical (config axes) → performer's pelvis → world.
+    c = robot_to_canonical_rotation(config)
+    hips = quat.to_matrix(motion.local_quats[:, 0])  # (T, 3, 3) canonical
+    base_rot = HUMAN_TO_WORLD @ hips @ c  # (T, 3, 3)
+
+    # Height targets: the performer's lowest foot point above their ground, scaled.
+    human = motion.positions()
+    foot_y = human[:, list(_FOOT_JOINTS), 1].min(axis=1)
+    ground = float(np.percentile(foot_y, _GROUND_PERCENTILE))
+    lowest = ratio * np.maximum(foot_y - ground, 0.0)
+    track = (human[:, 0] - human[:1, 0]) @ HUMAN_TO_WORLD.T * ratio  # (T, 3) world
+
+    local_feet = RobotKinematics(config).frame_positions(q_arr, list(feet))  # (T, F, 3) root
+    rel = np.einsum("tij,tfj->tfi", base_rot, local_feet)  # feet relative to the base, world
+    z = lowest - rel[:, :, 2].min(axis=1)
+    pos = np.column_stack([track[:, 0], track[:, 1], z])
+    if pin_feet:
+        planted = _human_planted(human, ground, motion.fps, _frame_sides(config, feet))
+        _pin_stance_feet(pos, rel, planted, contact_m)
+    world_feet = rel + pos[:, None, :]
+    root_quat = quat.make_continuous(quat.from_matrix(base_rot), axis=0)
+    return FloatingBase(pos, root_quat, world_feet, feet)
+
+
+def _frame_sides(config: RobotConfig, frames: tuple[str, ...]) -> list[str]:
+    """Left or Right for each foot point: the side of the mapped foot bone ending on its link."""
+    link = {f.name: f.parent_link for f in config.frames}
+    side = {link.get(b.end_frame): b.canonical_end for b in config.bones}
+    return ["Left" if side.get(link.get(f), "").startswith("Left") else "Right" for f in frames]
+
+
+def _human_planted(
+    human: FloatArray, ground: float, fps: float, sides: list[str]
+) -> npt.NDArray[np.bool_]:
+    """(T, F): the performer's foot on each robot foot frame's side is planted (near their
+    ground and slow)."""
+    out = np.zeros((len(human), len(sides)), dtype=bool)
+    for k, side in enumerate(sides):
+        pts = human[:, list(_SIDE_JOINTS[side])]  # (T, 2, 3)
+        low = pts[:, :, 1].min(axis=1) - ground <= HUMAN_CONTACT_M
+        horizontal = pts[:, :, [0, 2]]
+        vel = np.gradient(horizontal, axis=0) * fps if len(pts) > 1 else 0.0 * horizontal
+        slow = np.linalg.norm(vel, axis=-1).min(axis=1) <= HUMAN_CONTACT_SPEED_M_S
+        out[:, k] = low & slow
+    return out
+
+
+def _pin_stance_feet(
+    pos: FloatArray, rel: FloatArray, planted: npt.NDArray[np.bool_], contact_m: float
+) -> None:
+    """Shift the base horizontally (in place) so feet on the ground in consecutive frames do
+    not slide; the shift accumulates (the robot covers the ground its own legs cover)."""
+    offset = np.zeros(2)
+    prev_xy: FloatArray | None = None
+    prev_down: npt.NDArray[np.bool_] | None = None
+    for t in range(len(pos)):
+        pos[t, :2] += offset
+        xy = rel[t, :, :2] + pos[t, :2]
+        down = rel[t, :, 2] + pos[t, 2] <= contact_m
+        if (down & planted[t]).any():
+            down &= planted[t]  # several feet down: the ones the performer stands on
+        if prev_xy is not None and prev_down is not None:
+            stance = down & prev_down
+            if stance.any():
+                slip = (prev_xy[stance] - xy[stance]).mean(axis=0)
+                offset += slip
+                pos[t, :2] += slip
+                xy = xy + slip
+        prev_xy, prev_down = xy, down
+
+
+def foot_skate_m_s(feet: npt.ArrayLike, fps: float, contact_m: float = CONTACT_M) -> float:
+    """Mean horizontal speed (m/s) of robot foot points that stay on the ground (z within
+    ``contact_m``) from one frame to the next; 0 when no foot is ever down twice in a row."""
+    f = np.asarray(feet, dtype=np.float64)  # (T, F, 3) world
+    if len(f) < 2:
+        return 0.0
+    down = f[:, :, 2] <= contact_m
+    both = down[1:] & down[:-1]
+    if not both.any():
+        return 0.0
+    step = np.linalg.norm(f[1:, :, :2] - f[:-1, :, :2], axis=-1)
+    return float(step[both].mean() * fps)
