@@ -32,6 +32,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--cycles", type=int, default=200, help="timed write+read cycles")
     parser.add_argument(
+        "--fix-registers",
+        action="store_true",
+        help="write the expected angle/position limits, Homing Offset and Drive Mode where "
+        "another tool left other values (torque off; EEPROM)",
+    )
+    parser.add_argument(
         "--scan-all",
         action="store_true",
         help="Protocol 1.0: ping every ID 0–252, not only the config's",
@@ -94,7 +100,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {doctor.latency_advice(port, doctor.latency_timer_ms(port))}")
         try:
             report = doctor.check_bus(
-                config, bus_cfg, port, cycles=args.cycles, scan_all=args.scan_all
+                config,
+                bus_cfg,
+                port,
+                cycles=args.cycles,
+                scan_all=args.scan_all,
+                fix_registers=args.fix_registers,
             )
         except HardwareError as exc:
             print(f"  error: {exc}")
@@ -108,6 +119,21 @@ def run(args: argparse.Namespace) -> int:
             print(f"  not in config: {report.unexpected}")
         for sid, expected, got in report.mismatched:
             print(f"  MODEL MISMATCH ID {sid}: config {expected}, servo {doctor.model_name(got)}")
+        for f in report.fixed:
+            print(f"  FIXED {f.line()}")
+        bad = report.register_mismatches
+        for f in bad:
+            print(f"  REGISTER {f.line()}")
+        if report.registers:
+            n = len({f.servo_id for f in report.registers})
+            print(
+                f"  registers (limits, homing offset, drive mode) of {n} servo(s): "
+                + (
+                    f"{len(bad)} mismatch(es); `doctor --fix-registers` writes them"
+                    if bad
+                    else "ok"
+                )
+            )
         if report.cycle is not None:
             c = report.cycle
             print(

@@ -71,6 +71,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="save the commands sent (after the safety layer) as OUT.npz|.csv|.json",
     )
     parser.add_argument("--force", action="store_true", help="replace an existing --record file")
+    parser.add_argument(
+        "--fix-registers",
+        action="store_true",
+        help="dynamixel: write the expected angle/position limits, Homing Offset and Drive Mode "
+        "where another tool left other values, instead of refusing to connect",
+    )
 
 
 def _on_sigterm(signum: int, frame: FrameType | None) -> None:
@@ -111,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model or default_model_name())
     step = RetargetStep(config, model, default_canonical_skeleton())
     step.retargeter.warm_up()  # compile / page in before real time
-    backend = open_backend(config, args.backend, args.port)
+    backend = open_backend(config, args.backend, args.port, fix_registers=args.fix_registers)
 
     def report(line: str) -> None:
         print(line, file=sys.stderr, flush=True)

@@ -17,6 +17,7 @@ from robot_retarget.bench_stats import TimingStats
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import DynamixelBus
 from robot_retarget.hardware.control_table import control_table
+from robot_retarget.hardware.servo_registers import RegisterFinding, check_servo, fix_servo
 from robot_retarget.robot.config import BusConfig, RobotConfig
 from robot_retarget.robot.servo_models import SERVO_MODELS, servo_model
 
@@ -80,10 +81,16 @@ class BusReport:
     mismatched: list[tuple[int, str, int]] = field(default_factory=list)  # ID, expected, found
     cycle: TimingStats | None = None
     cycle_mode: str = ""
+    registers: list[RegisterFinding] = field(default_factory=list)  # of the servos found
+    fixed: list[RegisterFinding] = field(default_factory=list)  # mismatches written back
+
+    @property
+    def register_mismatches(self) -> list[RegisterFinding]:
+        return [f for f in self.registers if not f.ok]
 
     @property
     def ok(self) -> bool:
-        return not (self.missing or self.mismatched)
+        return not (self.missing or self.mismatched or self.register_mismatches)
 
 
 def model_name(model_number: int) -> str:
@@ -100,8 +107,10 @@ def check_bus(
     *,
     cycles: int = 200,
     scan_all: bool = False,
+    fix_registers: bool = False,
 ) -> BusReport:
-    """Ping the bus, compare with the config and time ``cycles`` write+read cycles.
+    """Ping the bus, compare with the config, check the EEPROM other tools leave behind (and,
+    with ``fix_registers``, write the expected values) and time ``cycles`` write+read cycles.
 
     The cycle writes each servo's own present position back as its goal, so nothing moves.
     """
@@ -127,6 +136,17 @@ def check_bus(
             got = report.found.get(j.servo_id)
             if got is not None and got != expected.model_number:
                 report.mismatched.append((j.servo_id, expected.name, got))
+        for j in joints:
+            if report.found.get(j.servo_id) != servo_model(j.servo_model).model_number:
+                continue
+            table = control_table(j.servo_model)
+            findings = check_servo(bus, j, table)
+            bad = [f for f in findings if not f.ok]
+            if bad and fix_registers:
+                still = fix_servo(bus, j, table, bad)
+                report.fixed += [f for f in bad if f.register not in {s.register for s in still}]
+                findings = check_servo(bus, j, table)
+            report.registers += findings
         present_ids = [j.servo_id for j in joints if j.servo_id in report.found]
         models = [j.servo_model for j in joints if j.servo_id in report.found]
         if present_ids and cycles > 0:

@@ -5,8 +5,10 @@ Protocol 2.0 Sync Read (Fast Sync Read where every servo on the bus supports it)
 Bulk Read for MX servos and per-servo reads for the rest (AX-12A has no Bulk Read).
 
 Safety rules kept here (the SafetyLayer in front does the limit clamping):
-- connect(): ping every configured ID and compare the model number; set return delay time,
-  operating mode and profile velocity/acceleration; torque stays off.
+- connect(): ping every configured ID and compare the model number; check the EEPROM other
+  tools leave behind (angle/position limits, Homing Offset, Drive Mode: refuse on a mismatch,
+  or write the expected values with ``fix_registers``; robot_retarget.hardware.servo_registers);
+  set return delay time, operating mode and profile velocity/acceleration; torque stays off.
 - Torque goes on only at the first send(): goal := present position, torque on, then a
   velocity-limited ramp to the first command. Never a jump.
 - Torque off on disconnect(), on any exception inside send()/read_state(), and on SIGINT /
@@ -40,6 +42,12 @@ from robot_retarget.hardware.control_table import (
     error_bit_names,
 )
 from robot_retarget.hardware.safety import UnsafeCommandError
+from robot_retarget.hardware.servo_registers import (
+    RegisterFinding,
+    RegisterMismatchError,
+    check_servo,
+    fix_servo,
+)
 from robot_retarget.hardware.types import FloatArray, IntArray, JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_models import servo_model
@@ -94,6 +102,7 @@ class DynamixelBackend(JointBackend):
         ramp_speed_fraction: float = 0.25,
         handle_signals: bool = True,
         sleep: Callable[[float], None] = time.sleep,
+        fix_registers: bool = False,
     ) -> None:
         missing = [b.name for b in config.buses if b.name not in buses]
         if missing:
@@ -103,6 +112,7 @@ class DynamixelBackend(JointBackend):
             )
         if not 0.0 < ramp_speed_fraction <= 1.0:
             raise ValueError(f"ramp_speed_fraction must be in (0, 1], got {ramp_speed_fraction}")
+        self.fix_registers = fix_registers
         self.config = config
         self.units = ServoUnits(config)
         self._lower = config.lower
@@ -156,6 +166,7 @@ class DynamixelBackend(JointBackend):
                 if not g.bus.is_open:
                     g.bus.open()
             self._check_models()
+            self._check_registers()
             self._configure_servos()
             state = self._read_state_raw()
         except BaseException:
@@ -208,6 +219,20 @@ class DynamixelBackend(JointBackend):
                 table = control_table(joint.servo_model)
                 if g.fast and firmware < table.fast_sync_read_min_firmware:
                     g.fast = False  # older firmware: plain Sync Read on this bus
+
+    def _check_registers(self) -> None:
+        """Limits, Homing Offset and Drive Mode as the config expects, or refuse (or, with
+        ``fix_registers``, write them, with the torque off, and read them back)."""
+        for g in self._groups:
+            mismatches: list[RegisterFinding] = []
+            for i, table in zip(g.joint_index, g.tables, strict=True):
+                joint = self.config.joints[i]
+                bad = [f for f in check_servo(g.bus, joint, table) if not f.ok]
+                if bad and self.fix_registers:
+                    bad = fix_servo(g.bus, joint, table, bad)
+                mismatches += bad
+            if mismatches:
+                raise RegisterMismatchError(mismatches, g.name)
 
     def _write_checked(
         self, g: _BusGroup, sid: int, table: ControlTable, name: str, value: int

@@ -37,8 +37,12 @@ def parse_ports(config: RobotConfig, ports: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def open_backend(config: RobotConfig, kind: str, ports: Sequence[str] = ()) -> JointBackend:
-    """An unconnected backend (the control loop connects it behind its safety layer)."""
+def open_backend(
+    config: RobotConfig, kind: str, ports: Sequence[str] = (), *, fix_registers: bool = False
+) -> JointBackend:
+    """An unconnected backend (the control loop connects it behind its safety layer);
+    ``fix_registers``: a Dynamixel backend writes the EEPROM values the config expects instead
+    of refusing to connect (robot_retarget.hardware.servo_registers)."""
     if kind == "sim":
         from robot_retarget.sim.backend import SimBackend
 
@@ -48,5 +52,5 @@ def open_backend(config: RobotConfig, kind: str, ports: Sequence[str] = ()) -> J
         from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
 
         buses = buses_from_config(config, parse_ports(config, ports))
-        return DynamixelBackend(config, buses, handle_signals=False)
+        return DynamixelBackend(config, buses, handle_signals=False, fix_registers=fix_registers)
     raise HardwareError(f"unknown backend {kind!r}; choose one of {', '.join(BACKENDS)}")

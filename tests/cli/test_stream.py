@@ -305,7 +305,7 @@ def test_a_recording_survives_an_error_that_stops_the_stream(
                 raise HardwareError("bus unplugged")
             return super().send(cmd)
 
-    monkeypatch.setattr(backends, "open_backend", lambda config, *_: Unplugged(config))
+    monkeypatch.setattr(backends, "open_backend", lambda config, *_, **__: Unplugged(config))
     record = tmp_path / "partial.npz"
     args = _args("--robot", "op3", "--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}",
                  "--backend", "sim", "--duration", "2.0", "--record", str(record))  # fmt: skip

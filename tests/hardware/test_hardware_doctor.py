@@ -83,3 +83,21 @@ def test_poppy_bus_check(poppy: RobotConfig, poppy_sim: dict[str, SimulatedBus])
         assert report.ok
         assert report.cycle is not None
         assert len(report.found) == sum(j.bus == bus_cfg.name for j in cfg.joints)
+
+
+def test_doctor_reports_and_fixes_registers_left_by_other_tools(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus]
+) -> None:
+    bus_cfg = op3.buses[0]
+    sim = op3_sim[bus_cfg.name]
+    knee = next(j for j in op3.joints if j.name == "l_knee")
+    sim.servos[knee.servo_id]._put("homing_offset", 77)
+    report = doctor.check_bus(op3, bus_cfg, sim.port or "", cycles=0)
+    assert not report.ok
+    assert [(f.servo_id, f.register, f.found) for f in report.register_mismatches] == [
+        (knee.servo_id, "homing_offset", 77)
+    ]
+    fixed = doctor.check_bus(op3, bus_cfg, sim.port or "", cycles=0, fix_registers=True)
+    assert fixed.ok
+    assert [f.register for f in fixed.fixed] == ["homing_offset"]
+    assert sim.servos[knee.servo_id].get("homing_offset") == 0
