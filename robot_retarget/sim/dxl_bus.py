@@ -394,11 +394,10 @@ class SimulatedBus:
         if inst == p.INST_BULK_READ and bcast:
             for k in range(0, len(prm) - 4, 5):
                 servo = self.servos.get(prm[k])
-                if servo is not None:
-                    code, data = servo.read(
-                        prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8
-                    )
-                    replies.append(self._status(servo, code, data))
+                if servo is None:
+                    break  # each reply waits for the one before it: the chain ends here
+                code, data = servo.read(prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8)
+                replies.append(self._status(servo, code, data))
             return replies
         if inst == p.INST_BULK_WRITE and bcast:
             k = 0
@@ -468,7 +467,9 @@ class SimulatedBus:
                 length, bid, addr = prm[k], prm[k + 1], prm[k + 2]
                 servo = self.servos.get(bid)
                 if servo is None or not servo.table.bulk_read:
-                    continue  # an AX ignores bulk read; the reply chain ends there
+                    # Each module answers after the one listed before it (MX e-Manual, Bulk
+                    # Read): a missing servo or an AX (no Bulk Read) ends the reply chain.
+                    break
                 code, data = servo.read(addr, length)
                 replies.append(self._status(servo, code, data))
             return replies

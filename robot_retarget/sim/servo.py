@@ -5,6 +5,12 @@ firmware does: read-only registers → access error, EEPROM while torque is on �
 a goal position outside the position limits → data limit error (value ignored). Present
 position/velocity follow the goal through :class:`robot_retarget.sim.kinematic.ServoDynamics`
 whenever torque is on, advanced lazily to the bus's clock when the servo is touched.
+
+As the e-Manuals describe: on Protocol 2.0 models (XM430) Present and Goal Position are in the
+user's frame — the horn's own position mirrored about the centre when Drive Mode's reverse bit
+is set, then shifted by Homing Offset — so a servo calibrated by another tool really does put
+its horn elsewhere. On Protocol 1.0 models (MX, AX) Lock = 1 makes the EEPROM area read-only,
+and Lock itself cannot be cleared, until the servo is powered off (a new SimServo).
 """
 
 from __future__ import annotations
@@ -73,8 +79,8 @@ class SimServo:
     def set_present_rad(self, q_rad: float) -> None:
         """Put the horn somewhere (e.g. where the robot was left): also the holding goal."""
         self.dynamics.q_rad = q_rad
-        self._put("present_position", self.rad_to_ticks(q_rad))
-        self._put("goal_position", self.rad_to_ticks(q_rad))
+        self._put("present_position", self.user_from_horn(self.rad_to_ticks(q_rad)))
+        self._put("goal_position", self.user_from_horn(self.rad_to_ticks(q_rad)))
 
     def _position_limits(self) -> tuple[int, int]:
         if self.protocol == 2.0:
@@ -101,6 +107,8 @@ class SimServo:
                 return ACCESS_ERROR
             if reg.eeprom and self.torque_on:
                 return ACCESS_ERROR  # EEPROM is locked while torque is on
+            if self._locked() and (reg.eeprom or reg.name == "lock"):
+                return ACCESS_ERROR  # Lock = 1: EEPROM read-only until power-off
         if address not in self._by_address or not regs:
             return ACCESS_ERROR
         for reg in regs:
@@ -113,6 +121,24 @@ class SimServo:
         self.memory[address:end] = data  # a goal is stored; the horn moves only with torque on
         self.writes += 1
         return OK
+
+    def _locked(self) -> bool:
+        return self.protocol == 1.0 and "lock" in self.table and self.get("lock") == 1
+
+    # User frame (registers) ↔ the horn's own ticks: reverse mirrors, Homing Offset shifts.
+    def _reversed(self) -> bool:
+        return "drive_mode" in self.table and bool(self.get("drive_mode") & 0x01)
+
+    def _homing(self) -> int:
+        return self.get("homing_offset") if "homing_offset" in self.table else 0
+
+    def user_from_horn(self, horn_ticks: int) -> int:
+        raw = 2 * self.model.zero_tick - horn_ticks if self._reversed() else horn_ticks
+        return raw + self._homing()
+
+    def horn_from_user(self, user_ticks: int) -> int:
+        raw = user_ticks - self._homing()
+        return 2 * self.model.zero_tick - raw if self._reversed() else raw
 
     # ----- motion ----------------------------------------------------------------------------
     def _max_speed_rad_s(self) -> float:
@@ -128,14 +154,14 @@ class SimServo:
             return
         if self.torque_on and not self.hardware_error_latched:
             self.dynamics.max_velocity_rad_s = self._max_speed_rad_s()
-            lo, hi = self._position_limits()
+            lo, hi = sorted(self.horn_from_user(t) for t in self._position_limits())
             self.dynamics.lower_rad = self.ticks_to_rad(lo)
             self.dynamics.upper_rad = self.ticks_to_rad(hi)
-            self.dynamics.step(self.ticks_to_rad(self.get("goal_position")), dt_s)
+            self.dynamics.step(self.goal_rad, dt_s)
         else:
             self.dynamics.velocity_rad_s = 0.0
         ticks = round(self.dynamics.q_rad / self.model.rad_per_tick) + self.model.zero_tick
-        self._put("present_position", ticks)
+        self._put("present_position", self.user_from_horn(ticks))
         vel_units = round(self.dynamics.velocity_rad_s / self.table.velocity_unit_rad_s)
         moving = int(abs(vel_units) > 0)
         if self.protocol == 2.0:
@@ -167,7 +193,8 @@ class SimServo:
 
     @property
     def goal_rad(self) -> float:
-        return self.ticks_to_rad(self.get("goal_position"))
+        """Where the horn goes (its own frame, after Homing Offset and Drive Mode)."""
+        return self.ticks_to_rad(self.horn_from_user(self.get("goal_position")))
 
     @property
     def present_rad(self) -> float:

@@ -228,3 +228,17 @@ def test_any_extended_goal_survives_stuffing(goals: list[int]) -> None:
     assert bus.feed(packet) == b""
     assert not bus.log.rejected
     assert [s.get("goal_position") for s in servos] == goals
+
+
+def test_a_protocol_1_bulk_read_chain_stops_at_a_servo_that_cannot_answer() -> None:
+    """MX e-Manual: each module answers after the one listed before it, so an AX (no Bulk
+    Read) or a missing ID in the list ends the chain; the ones after it stay silent."""
+    servos = [SimServo(11, "MX-28"), SimServo(36, "AX-12A"), SimServo(13, "MX-64")]
+    bus = SimulatedBus(servos, protocol=1.0, baud_rate=1_000_000)
+    # Bulk Read params: 0x00, then (length, id, address) per servo: present position (36, 2 B).
+    params = bytes([0x00, 2, 11, 36, 2, 36, 36, 2, 13, 36])
+    replies = bus.feed(p.build_v1(p.BROADCAST_ID, p.INST_BULK_READ, params))
+    assert replies.count(b"\xff\xff") == 1  # 11 answers; 36 cannot, so 13 never does
+    assert replies[2] == 11
+    params = bytes([0x00, 2, 11, 36, 2, 13, 36])
+    assert bus.feed(p.build_v1(p.BROADCAST_ID, p.INST_BULK_READ, params)).count(b"\xff\xff") == 2

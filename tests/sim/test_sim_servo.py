@@ -42,3 +42,41 @@ def test_set_present_round_trips(model: str) -> None:
     s.set_present_rad(0.5)
     assert abs(s.ticks_to_rad(s.get("present_position")) - 0.5) <= s.model.rad_per_tick
     assert s.goal_rad == pytest.approx(s.ticks_to_rad(s.get("present_position")))
+
+
+def _settle(servo: SimServo, goal: int) -> None:
+    servo._put("torque_enable", 1)
+    assert servo.write(servo.table["goal_position"].address, goal.to_bytes(4, "little")) == OK
+    for _ in range(200):
+        servo.advance(0.01)
+
+
+def test_homing_offset_shifts_where_a_goal_puts_the_horn() -> None:
+    """XM430: Present Position = horn + Homing Offset; a goal lands Homing Offset away."""
+    servo = SimServo(1, "XM430-W350")
+    servo._put("homing_offset", 100)
+    _settle(servo, 2148)
+    assert servo.present_rad == pytest.approx(0.0, abs=2e-3)  # the horn sits at its centre
+    assert servo.get("present_position") == pytest.approx(2148, abs=1)
+
+
+def test_reverse_drive_mode_mirrors_the_horn() -> None:
+    servo = SimServo(1, "XM430-W350")
+    servo._put("drive_mode", 1)
+    _settle(servo, 2048 + 100)
+    assert servo.present_rad == pytest.approx(-100 * servo.model.rad_per_tick, abs=2e-3)
+    assert servo.get("present_position") == pytest.approx(2148, abs=1)
+
+
+@pytest.mark.parametrize("model", ["MX-28", "MX-64", "AX-12A"])
+def test_lock_makes_the_eeprom_read_only_until_power_off(model: str) -> None:
+    servo = SimServo(11, model)
+    cw = servo.table["cw_angle_limit"]
+    lock = servo.table["lock"]
+    assert servo.write(cw.address, (100).to_bytes(2, "little")) == OK  # unlocked: fine
+    assert servo.write(lock.address, b"\x01") == OK
+    assert servo.write(cw.address, (0).to_bytes(2, "little")) == ACCESS_ERROR
+    assert servo.write(lock.address, b"\x00") == ACCESS_ERROR  # cannot be cleared
+    goal = servo.table["goal_position"]
+    assert servo.write(goal.address, (512).to_bytes(2, "little")) == OK  # RAM still writable
+    assert SimServo(11, model).get("lock") == 0  # power-cycled
