@@ -35,6 +35,8 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.sim.servo import OK, SimServo
 
 _INCOMPLETE_PACKET_TIMEOUT_S = 0.05
+USB2AX_SYNC_READ = 0x84  # USB2AX's own instruction (Protocol 1.0 has no Sync Read)
+USB2AX_ID = 0xFD
 
 
 @dataclass
@@ -72,6 +74,7 @@ class SimulatedBus:
         baud_rate: int = 1_000_000,
         wire_time: bool = False,
         clock: Callable[[], float] = time.monotonic,
+        usb2ax: bool = False,
     ) -> None:
         if protocol not in (1.0, 2.0):
             raise ValueError(f"protocol must be 1.0 or 2.0, got {protocol!r}")
@@ -86,6 +89,9 @@ class SimulatedBus:
             self.servos[s.servo_id] = s
         self.baud_rate = baud_rate
         self.wire_time = wire_time
+        # Protocol 1.0 through a USB2AX adapter, as Poppy's own software expects: the adapter
+        # answers SYNC_READ (0x84) itself, with every listed servo's data in one packet.
+        self.usb2ax = usb2ax and self.protocol == 1.0
         self._clock = clock
         self.faults = Faults()
         self.log = BusLog()
@@ -462,6 +468,8 @@ class SimulatedBus:
                 if servo is not None:
                     servo.write(addr, body[k + 1 : k + 1 + length])
             return replies
+        if inst == USB2AX_SYNC_READ and bcast and self.usb2ax and len(prm) >= 3:
+            return self._usb2ax_sync_read(prm[0], prm[1], list(prm[2:]))
         if inst == p.INST_BULK_READ and bcast and len(prm) >= 1:
             for k in range(1, len(prm) - 2, 3):
                 length, bid, addr = prm[k], prm[k + 1], prm[k + 2]
@@ -474,6 +482,20 @@ class SimulatedBus:
                 replies.append(self._status(servo, code, data))
             return replies
         return [self._instruction_error(s) for s in self._targets(sid) if not bcast]
+
+    def _usb2ax_sync_read(self, addr: int, length: int, ids: list[int]) -> list[tuple[int, bytes]]:
+        """The adapter reads each listed servo and answers once, from its own ID (0xFD), with
+        the data concatenated in list order; a missing servo leaves it silent (a timeout)."""
+        data = bytearray()
+        for sid in ids:
+            servo = self.servos.get(sid)
+            if servo is None:
+                return []
+            code, chunk = servo.read(addr, length)
+            if code != OK:
+                return []
+            data += chunk
+        return [(USB2AX_ID, p.build_status_v1(USB2AX_ID, 0, bytes(data)))]
 
 
 def _sleep_until(deadline: float, clock: Callable[[], float]) -> None:
@@ -507,14 +529,17 @@ def buses_for_robot(
     *,
     wire_time: bool = False,
     q_rad: Sequence[float] | None = None,
+    usb2ax: bool = True,
 ) -> dict[str, SimulatedBus]:
-    """One (not yet started) simulated bus per bus of the robot config."""
+    """One (not yet started) simulated bus per bus of the robot config; Protocol 1.0 buses
+    behave as behind a USB2AX adapter unless ``usb2ax`` is False."""
     return {
         b.name: SimulatedBus(
             servos_for_bus(config, b.name, q_rad),
             protocol=b.protocol,
             baud_rate=b.baud_rate,
             wire_time=wire_time,
+            usb2ax=usb2ax,
         )
         for b in config.buses
     }
@@ -530,9 +555,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--wire-time", action="store_true", help="delay replies by the bytes' time on the wire"
     )
     args = parser.parse_args(argv)
+    from robot_retarget.errors import RetargetError
     from robot_retarget.robot.loader import load_robot_config
 
-    config = load_robot_config(args.robot)
+    try:
+        config = load_robot_config(args.robot)
+    except RetargetError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     buses = buses_for_robot(config, wire_time=args.wire_time)
     for bus in buses.values():
         bus.open()

@@ -242,3 +242,16 @@ def test_a_protocol_1_bulk_read_chain_stops_at_a_servo_that_cannot_answer() -> N
     assert replies[2] == 11
     params = bytes([0x00, 2, 11, 36, 2, 13, 36])
     assert bus.feed(p.build_v1(p.BROADCAST_ID, p.INST_BULK_READ, params)).count(b"\xff\xff") == 2
+
+
+def test_a_usb2ax_bus_answers_sync_read_in_one_packet_from_the_adapter() -> None:
+    servos = [SimServo(11, "MX-28"), SimServo(13, "MX-64")]
+    request = p.build_v1(p.BROADCAST_ID, 0x84, bytes([36, 2, 11, 13]))  # present position ×2
+    plain = SimulatedBus(servos, protocol=1.0, baud_rate=1_000_000)
+    assert plain.feed(request) == b""  # a bare MX bus has no Sync Read: silence
+    usb2ax = SimulatedBus(servos, protocol=1.0, baud_rate=1_000_000, usb2ax=True)
+    reply = p.parse_v1(usb2ax.feed(request), status=True)
+    assert reply.servo_id == 0xFD
+    assert reply.params == servos[0].read(36, 2)[1] + servos[1].read(36, 2)[1]
+    missing = p.build_v1(p.BROADCAST_ID, 0x84, bytes([36, 2, 11, 99]))
+    assert usb2ax.feed(missing) == b""  # a servo that does not answer: a timeout
