@@ -35,6 +35,8 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.sim.servo import OK, SimServo
 
 _INCOMPLETE_PACKET_TIMEOUT_S = 0.05
+# Stray bytes with a false Protocol 1.0 and 2.0 header in them, as a noisy line might deliver.
+_LINE_NOISE = bytes((0x00, 0xFF, 0x13, 0xFF, 0xFF, 0xFD, 0x00, 0x7F, 0xFF, 0xFF, 0x07))
 USB2AX_SYNC_READ = 0x84  # USB2AX's own instruction (Protocol 1.0 has no Sync Read)
 USB2AX_ID = 0xFD
 
@@ -47,6 +49,7 @@ class Faults:
     corrupt_replies: int = 0
     late_replies: int = 0
     late_reply_s: float = 0.05
+    noise_replies: int = 0  # line noise: stray bytes (a false header among them) before a reply
     only_id: int | None = None  # restrict reply faults to this servo (None: any)
 
     def _applies(self, servo_id: int) -> bool:
@@ -271,6 +274,9 @@ class SimulatedBus:
             if f.corrupt_replies > 0 and f._applies(sid):
                 f.corrupt_replies -= 1
                 reply = reply[:-1] + bytes(((reply[-1] ^ 0x5A),))
+            if f.noise_replies > 0 and f._applies(sid):
+                f.noise_replies -= 1
+                reply = _LINE_NOISE + reply
             if f.late_replies > 0 and f._applies(sid):
                 f.late_replies -= 1
                 late_s = max(late_s, f.late_reply_s)
