@@ -37,6 +37,7 @@ INST_SYNC_WRITE = 0x83
 INST_FAST_SYNC_READ = 0x8A
 INST_BULK_READ = 0x92
 INST_BULK_WRITE = 0x93
+INST_FAST_BULK_READ = 0x9A
 
 # Protocol 2.0 status error field: low 7 bits an error number, bit 7 the hardware alert.
 ERR2_RESULT_FAIL = 0x01

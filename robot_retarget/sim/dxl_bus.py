@@ -7,7 +7,7 @@ gets no reply), runs the instruction on its :class:`robot_retarget.sim.servo.Sim
 and writes the status packets back. Optional wire-time model: replies come no earlier than the
 bytes would take
 on a real bus at the configured baud rate (10 bits per byte), plus each servo's return delay.
-Fault injection: dropped, corrupt or late replies, hardware error bits, an unplugged port.
+Fault injection: dropped, corrupt, late or noisy replies, hardware error bits, an unplugged port.
 
 Runs in a background thread (tests) or standalone::
 
@@ -394,7 +394,14 @@ class SimulatedBus:
                     code, data = s.read(addr, length)
                     replies.append(self._status(s, code, data))
                 return replies
-            return self._fast_sync_read(listed, addr, length)
+            return self._fast_read([(s, addr, length) for s in listed])
+        if inst == p.INST_FAST_BULK_READ and bcast:
+            items = [
+                (self.servos[prm[k]], prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8)
+                for k in range(0, len(prm) - 4, 5)
+                if prm[k] in self.servos
+            ]
+            return self._fast_read(items)
         if inst == p.INST_SYNC_WRITE and bcast and len(prm) >= 4:
             addr, length = prm[0] | prm[1] << 8, prm[2] | prm[3] << 8
             body = prm[4:]
@@ -422,21 +429,24 @@ class SimulatedBus:
             return replies
         return [self._instruction_error(s) for s in self._targets(sid) if not bcast]
 
-    def _fast_sync_read(
-        self, listed: list[SimServo], addr: int, length: int
-    ) -> list[tuple[int, bytes]]:
-        """One status packet from ID 0xFE: [ERR ID DATA CRC] per servo; each servo's CRC is the
-        running CRC of the packet so far, the last one the packet's own CRC."""
-        if not listed:
+    def _fast_read(self, items: list[tuple[SimServo, int, int]]) -> list[tuple[int, bytes]]:
+        """Fast Sync / Fast Bulk Read: one status packet from ID 0xFE with [ERR ID DATA CRC] per
+        servo; each servo's CRC is the running CRC of the packet so far, the last one the
+        packet's own CRC. Each servo appends its part after the one before it, so the chain
+        ends at the first servo whose firmware predates the instruction (e-Manual: v45 on the
+        XM430): nothing if it is the first, else a packet cut short (the client times out)."""
+        if not items:
             return []
-        total = 1 + len(listed) * (length + 4)
+        total = 1 + sum(length + 4 for _, _, length in items)
         pkt = bytearray(p.HEADER_V2 + bytes((p.BROADCAST_ID, total & 0xFF, total >> 8, 0x55)))
-        for s in listed:
+        for k, (s, addr, length) in enumerate(items):
+            if s.get("firmware_version") < s.table.fast_sync_read_min_firmware:
+                return [(items[0][0].servo_id, bytes(pkt))] if k else []
             code, data = s.read(addr, length)
             pkt += bytes((s.status_error_v2(code), s.servo_id)) + data.ljust(length, b"\0")
             crc = p.crc16(pkt)
             pkt += bytes((crc & 0xFF, crc >> 8))
-        return [(listed[0].servo_id, bytes(pkt))]
+        return [(items[0][0].servo_id, bytes(pkt))]
 
     def _execute_v1(self, pkt: p.Packet) -> list[tuple[int, bytes]]:
         inst, prm, sid = pkt.code, pkt.params, pkt.servo_id

@@ -255,3 +255,26 @@ def test_a_usb2ax_bus_answers_sync_read_in_one_packet_from_the_adapter() -> None
     assert reply.params == servos[0].read(36, 2)[1] + servos[1].read(36, 2)[1]
     missing = p.build_v1(p.BROADCAST_ID, 0x84, bytes([36, 2, 11, 99]))
     assert usb2ax.feed(missing) == b""  # a servo that does not answer: a timeout
+
+
+def test_fast_bulk_read_answers_in_one_packet_with_running_crcs() -> None:
+    """Protocol 2.0 Fast Bulk Read (0x9A): each servo's own address and length, one reply."""
+    servos = [SimServo(1, "XM430-W350"), SimServo(2, "XM430-W350")]
+    bus = SimulatedBus(servos, protocol=2.0, baud_rate=2_000_000)
+    items = [(1, 132, 4), (2, 126, 2)]  # present position; present load
+    params = b"".join(bytes([i]) + a.to_bytes(2, "little") + n.to_bytes(2, "little")
+                      for i, a, n in items)  # fmt: skip
+    reply = bus.feed(p.build_v2(p.BROADCAST_ID, p.INST_FAST_BULK_READ, params))
+    packet = p.parse_v2(reply)  # the whole packet's CRC is checked here
+    assert packet.servo_id == p.BROADCAST_ID
+    body = packet.params  # after the first ERR: ID DATA CRC, ERR ID DATA (CRC: the packet's)
+    assert body[0] == 1
+    assert body[1:5] == servos[0].read(132, 4)[1]
+    assert body[5:7] == p.crc16(reply[:14]).to_bytes(2, "little")  # running CRC
+    assert body[8] == 2
+    assert body[9:11] == servos[1].read(126, 2)[1]
+    servos[1]._put("firmware_version", 44)  # before Fast Bulk Read: the chain is cut short
+    cut = bus.feed(p.build_v2(p.BROADCAST_ID, p.INST_FAST_BULK_READ, params))
+    assert 0 < len(cut) < len(reply)
+    servos[0]._put("firmware_version", 44)
+    assert bus.feed(p.build_v2(p.BROADCAST_ID, p.INST_FAST_BULK_READ, params)) == b""

@@ -54,3 +54,11 @@ def test_standalone_bus_serves_the_sdk() -> None:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_an_unknown_robot_is_a_one_line_error() -> None:
+    out = subprocess.run([sys.executable, "-m", "robot_retarget.sim.dxl_bus", "--robot", "op4"],
+                         capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    assert out.returncode == 2
+    assert out.stderr.startswith("error: no robot config named 'op4'")
+    assert "Traceback" not in out.stderr
