@@ -8,7 +8,6 @@ import select
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import dynamixel_sdk as sdk
@@ -47,9 +46,7 @@ def test_standalone_bus_serves_the_sdk() -> None:
             assert ph.ping(port, j.servo_id)[:2] == (1020, sdk.COMM_SUCCESS)
         port.closePort()
         proc.send_signal(signal.SIGINT)
-        t0 = time.monotonic()
-        assert proc.wait(timeout=5.0) == 0
-        assert time.monotonic() - t0 < 5.0
+        assert proc.wait(timeout=5.0) == 0  # stops on SIGINT (TimeoutExpired otherwise)
     finally:
         if proc.poll() is None:
             proc.kill()
