@@ -24,7 +24,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "RobotConfig": ("robot_retarget.robot.config", "RobotConfig"),
     "load_motion": ("robot_retarget.motion.human_motion", "load_motion"),
     "HumanMotion": ("robot_retarget.motion.human_motion", "HumanMotion"),
-    "load_model": ("robot_retarget.nn.inference", "load_model"),
+    "load_model": ("robot_retarget.runtime.loader", "load_runtime_model"),
     "Retargeter": ("robot_retarget.optimize.retargeter", "Retargeter"),
     "RetargetStep": ("robot_retarget.pipeline.step", "RetargetStep"),
     "RobotTrajectory": ("robot_retarget.motion.trajectory", "RobotTrajectory"),
@@ -65,12 +65,12 @@ if TYPE_CHECKING:
     from robot_retarget.hardware.types import JointCommand
     from robot_retarget.motion.human_motion import HumanMotion, load_motion
     from robot_retarget.motion.trajectory import RobotTrajectory
-    from robot_retarget.nn.inference import load_model
     from robot_retarget.optimize.retargeter import Retargeter
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.robot.config import RobotConfig
     from robot_retarget.robot.loader import available_robots
     from robot_retarget.robot.loader import load_robot_config as load_robot
+    from robot_retarget.runtime.loader import load_runtime_model as load_model
     from robot_retarget.sim.backend import SimBackend
     from robot_retarget.sim.robot_bus import SimulatedRobotBus
 

@@ -13,15 +13,20 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.motion.trajectory import RobotTrajectory
-from robot_retarget.nn.inference import LoadedModel, load_model
 from robot_retarget.pipeline.convert import ClipResult, convert_motion
 from robot_retarget.pipeline.defaults import default_model_name
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.loader import load_robot_config
+from robot_retarget.runtime.loader import load_runtime_model
+from robot_retarget.runtime.model import RuntimeModel
+
+if TYPE_CHECKING:
+    from robot_retarget.nn.inference import LoadedModel
 
 
 @dataclass(frozen=True)
@@ -37,23 +42,24 @@ class RetargetResult:
 def retarget(
     clip_or_motion: HumanMotion | str | os.PathLike[str],
     robot: RobotConfig | str | os.PathLike[str] = "op3",
-    model: LoadedModel | str | os.PathLike[str] | None = None,
+    model: RuntimeModel | LoadedModel | str | os.PathLike[str] | None = None,
     *,
     fps: float | None = None,
 ) -> RetargetResult:
     """Retarget a BVH file (or a loaded :class:`HumanMotion`) to ``robot`` (a name, a YAML path
-    or a loaded config) with ``model`` (a name or checkpoint path; default: the shipped
-    default), at ``fps`` (default: the robot's control rate)."""
+    or a loaded config) with ``model`` (a name, a runtime ``.npz`` or checkpoint path, or a
+    loaded model; default: the shipped default — its numpy runtime, no torch needed), at ``fps``
+    (default: the robot's control rate)."""
     motion = (
         clip_or_motion
         if isinstance(clip_or_motion, HumanMotion)
         else load_motion(os.fspath(clip_or_motion))
     )
     config = robot if isinstance(robot, RobotConfig) else load_robot_config(robot)
-    if isinstance(model, LoadedModel):
-        loaded = model
+    if isinstance(model, str | os.PathLike) or model is None:
+        loaded = load_runtime_model(os.fspath(model) if model is not None else default_model_name())
     else:
-        loaded = load_model(os.fspath(model) if model is not None else default_model_name())
+        loaded = model
     step = RetargetStep(config, loaded, motion.skeleton)
     result = convert_motion(motion, step, fps=fps)
     return RetargetResult(result.trajectory, result, loaded.name)

@@ -153,13 +153,13 @@ def _plan(args: argparse.Namespace) -> list[_Job]:
 def run(args: argparse.Namespace) -> int:
     from robot_retarget.cli.output_paths import StagedWrites
     from robot_retarget.motion.human_motion import load_motion
-    from robot_retarget.nn.inference import load_model
     from robot_retarget.pipeline.convert import convert_motion
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.pipeline.robot_bvh import write_robot_bvh
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.render.preview import render_preview
     from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.runtime.loader import load_runtime_model
     from robot_retarget.skeleton.canonical import default_canonical_skeleton
 
     if args.fps is not None and not args.fps > 0:
@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
     jobs = _plan(args)
     folder = args.input.is_dir()
     config = load_robot_config(args.robot)
-    model = load_model(args.model or default_model_name())
+    model = load_runtime_model(args.model or default_model_name())
     print(f"robot {config.name}, model {model.name}, {len(jobs)} clip(s)", file=sys.stderr)
     step = RetargetStep(config, model, default_canonical_skeleton())
     reports: list[ClipReport] = []

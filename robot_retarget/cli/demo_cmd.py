@@ -43,7 +43,6 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.errors import RetargetError
     from robot_retarget.motion.synthetic import demo_motion
     from robot_retarget.motion.trajectory import RobotTrajectory
-    from robot_retarget.nn.inference import load_model
     from robot_retarget.pipeline.convert import check_limits, convert_motion
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.pipeline.loop import ControlLoop, LoopSettings, Mode
@@ -52,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.render.preview import check_preview_path, render_preview
     from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.runtime.loader import load_runtime_model
     from robot_retarget.sim.robot_bus import SimulatedRobotBus
     from robot_retarget.sources.replay import ReplaySource
 
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     config = load_robot_config(args.robot)
     motion = demo_motion(fps=30.0)
     motion = motion.frames(0, min(motion.num_frames, round(args.seconds * 30.0) + 1))
-    model = load_model(args.model or default_model_name())
+    model = load_runtime_model(args.model or default_model_name())
     say(
         f"demo: built-in clip ({motion.num_frames} frames, {motion.duration_s:.1f} s) → model "
         f"{model.name} → {config.name}"

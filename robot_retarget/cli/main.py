@@ -28,6 +28,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("eval", "robot_retarget.cli.eval_cmd", "Evaluate retargeting models on unseen subjects."),
     ("eval-robot", "robot_retarget.cli.eval_robot_cmd", "Score the pipeline on a robot."),
     ("bench", "robot_retarget.cli.bench_cmd", "Speed benchmarks: solve, loop, model, pipeline."),
+    ("export", "robot_retarget.cli.export_cmd", "Export a checkpoint to its numpy runtime."),
 )
 
 

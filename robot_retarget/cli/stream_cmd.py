@@ -85,12 +85,12 @@ def _on_sigterm(signum: int, frame: FrameType | None) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from robot_retarget.errors import RetargetError
-    from robot_retarget.nn.inference import load_model
     from robot_retarget.pipeline.backends import open_backend
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.pipeline.loop import ControlLoop, LoopSettings
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.runtime.loader import load_runtime_model
     from robot_retarget.skeleton.canonical import default_canonical_skeleton
     from robot_retarget.sources import open_source
 
@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         token=args.token,
         allow_remote=args.allow_remote,
     )
-    model = load_model(args.model or default_model_name())
+    model = load_runtime_model(args.model or default_model_name())
     step = RetargetStep(config, model, default_canonical_skeleton())
     step.retargeter.warm_up()  # compile / page in before real time
     backend = open_backend(config, args.backend, args.port, fix_registers=args.fix_registers)

@@ -84,7 +84,7 @@ def resolve(name: str) -> tuple[LoadedModel, str]:
 
 def has_numpy_twin(model: LoadedModel) -> bool:
     """Whether the live pipeline runs ``model``'s online step in numpy instead of torch."""
-    from robot_retarget.pipeline.fast_copy import online_retargeter
+    from robot_retarget.runtime.loader import online_retargeter
 
     src = default_canonical_skeleton().offsets
     return not isinstance(online_retargeter(model, src, src), OnlineRetargeter)
@@ -99,8 +99,9 @@ def time_online(
     model: LoadedModel, frames: int, warmup: int, numpy_twin: bool = False
 ) -> TimingStats:
     """Per-frame time of the online step: torch (``OnlineRetargeter``), or with ``numpy_twin``
-    the numpy step the live pipeline runs (robot_retarget.pipeline.fast_copy.online_retargeter)."""
-    from robot_retarget.pipeline.fast_copy import OnlineStep, online_retargeter
+    the numpy step the live pipeline runs (robot_retarget.runtime.copy.online_retargeter)."""
+    from robot_retarget.runtime.loader import online_retargeter
+    from robot_retarget.runtime.model import OnlineStep
 
     q, root = synthetic_motion(frames + warmup)
     src, tgt = default_canonical_skeleton().offsets, _target_offsets()

@@ -29,20 +29,14 @@ import torch
 
 from robot_retarget.geometry.quaternion_tables import matrix_table
 from robot_retarget.nn import fk_torch
-from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
+from robot_retarget.runtime.pmnet import PMNET_SCALE_JOINTS
+from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
 from robot_retarget.skeleton.tree_tables import ancestor_matrix, pointer_jumps
 
 Tensor = torch.Tensor
 
 ROOT_VEL_DIM = 4
 """Root movement features per frame: dx, dy, dz (heading frame, m/frame), dyaw (rad/frame)."""
-
-# PMnet eq. 6: the scale factor S sums the bone lengths of the root, spine, neck and left-leg
-# joints. Their N_s only rescales Mixamo centimetres; our offsets are metres, so N_s = 1.
-PMNET_SCALE_JOINTS: tuple[int, ...] = (
-    Joint.Hips, Joint.Spine, Joint.Spine1, Joint.Spine2, Joint.Neck,
-    Joint.LeftUpLeg, Joint.LeftLeg, Joint.LeftFoot,
-)  # fmt: skip
 
 
 # Constants and caches are built outside inference mode even when first needed inside it:

@@ -36,11 +36,11 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     from robot_retarget.hardware.safety import SafetyLayer
     from robot_retarget.hardware.types import JointCommand
     from robot_retarget.motion.synthetic import demo_motion
-    from robot_retarget.nn.inference import load_model
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.pipeline.recorder import RecordingBackend
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.runtime.loader import load_runtime_model
     from robot_retarget.sources import wire
     from robot_retarget.sources.udp import UdpSource
 
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     dt = 1.0 / rate
     motion = demo_motion(fps=rate)
     positions = motion.positions()
-    model = load_model(args.model or default_model_name())
+    model = load_runtime_model(args.model or default_model_name())
     receiver = UdpSource(skeleton=motion.skeleton)  # never started: decode path only
     step = RetargetStep(config, model, motion.skeleton)
     step.retargeter.warm_up()

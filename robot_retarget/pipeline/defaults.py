@@ -1,6 +1,6 @@
 """Which model the product uses when none is named.
 
-The one place to switch the default: :data:`robot_retarget.nn.inference.DEFAULT_MODEL` names
+The one place to switch the default: :data:`DEFAULT_MODEL` names
 the shipped checkpoint; until that checkpoint exists the pipeline runs :data:`FALLBACK_MODEL`,
 so convert, stream and demo work on a fresh install. ``copy-scaled`` (rotations copied, root
 velocity scaled by the height ratio) is the stronger of the parameter-free baselines: the same
@@ -13,8 +13,13 @@ from __future__ import annotations
 FALLBACK_MODEL = "copy-scaled"
 
 
-def default_model_name() -> str:
-    """The shipped default checkpoint's name if it ships, else :data:`FALLBACK_MODEL`."""
-    from robot_retarget.nn.inference import DEFAULT_MODEL, available_models
+DEFAULT_MODEL = "default"
 
-    return DEFAULT_MODEL if DEFAULT_MODEL in available_models() else FALLBACK_MODEL
+
+def default_model_name() -> str:
+    """The shipped default model's name if it ships (its numpy runtime or its checkpoint),
+    else :data:`FALLBACK_MODEL`. Imports no torch."""
+    from robot_retarget.runtime.loader import CHECKPOINT_DIR
+
+    shipped = any((CHECKPOINT_DIR / f"{DEFAULT_MODEL}{ext}").is_file() for ext in (".npz", ".pt"))
+    return DEFAULT_MODEL if shipped else FALLBACK_MODEL

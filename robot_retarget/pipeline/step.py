@@ -9,17 +9,21 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.nn.inference import LoadedModel, load_model
 from robot_retarget.optimize import Retargeter, SolveResult
 from robot_retarget.optimize.targets import FrameTargetBuilder
-from robot_retarget.pipeline.fast_copy import OnlineStep, online_retargeter
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.runtime.loader import load_runtime_model, online_retargeter
+from robot_retarget.runtime.model import OnlineStep, RuntimeModel
 from robot_retarget.skeleton.skeleton import Skeleton
+
+if TYPE_CHECKING:
+    from robot_retarget.nn.inference import LoadedModel
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -54,13 +58,14 @@ class RetargetStep:
     def __init__(
         self,
         config: RobotConfig,
-        model: LoadedModel | str,
+        model: RuntimeModel | LoadedModel | str,
         source_skeleton: Skeleton,
         *,
         retargeter: Retargeter | None = None,
     ) -> None:
         self.config = config
-        self.model = load_model(model) if isinstance(model, str) else model
+        # A name or path: the numpy runtime when there is one (no torch), else torch.
+        self.model = load_runtime_model(model) if isinstance(model, str) else model
         self.robot_skeleton = robot_canonical_skeleton(config)
         self.retargeter = retargeter if retargeter is not None else Retargeter(config)
         # Per-skeleton constants of the targets, computed once (the per-frame path).
@@ -71,8 +76,8 @@ class RetargetStep:
     def set_source(self, source_skeleton: Skeleton) -> None:
         """A new performer: fresh network state for their rest offsets.
 
-        The copy baselines run as numpy (:mod:`robot_retarget.pipeline.fast_copy`), every
-        other model through torch; the same numbers either way."""
+        Models with a numpy runtime (:mod:`robot_retarget.runtime`) run without torch; the
+        others step through torch; the same numbers either way (tested)."""
         self.online: OnlineStep = online_retargeter(
             self.model, source_skeleton.offsets, self.robot_skeleton.offsets
         )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
-from robot_retarget.pipeline.fast_copy import online_retargeter
+from robot_retarget.runtime.loader import online_retargeter
 
 
 def assert_same_stream(

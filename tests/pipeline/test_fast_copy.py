@@ -14,14 +14,13 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter, load_model
 from robot_retarget.nn.models.copy import CopyModel
-from robot_retarget.pipeline.fast_copy import (
-    FastCopyRetargeter,
-    is_copy_baseline,
-    online_retargeter,
-    rest_height_m,
-)
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.runtime.copy import (
+    FastCopyRetargeter,
+    rest_height_m,
+)
+from robot_retarget.runtime.loader import online_retargeter
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from tests.pipeline.stream_equality import assert_same_stream
 
@@ -102,9 +101,9 @@ def test_only_the_exact_baselines_take_the_fast_path(demo: HumanMotion) -> None:
         name = "tweaked"
 
     src = demo.skeleton.offsets
-    assert is_copy_baseline(load_model("copy"))
-    assert is_copy_baseline(load_model("copy-scaled").model)
-    assert not is_copy_baseline(Tweaked())
+    assert load_model("copy").model.runtime() is not None
+    assert load_model("copy-scaled").model.runtime() is not None
+    assert Tweaked().runtime() is None
     assert isinstance(online_retargeter(Tweaked(), src, src), OnlineRetargeter)
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -13,10 +12,10 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
 from robot_retarget.nn.models.registry import build_model
-from robot_retarget.pipeline.fast_copy import online_retargeter
-from robot_retarget.pipeline.fast_pmnet import FastPMnetRetargeter
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.runtime.loader import online_retargeter
+from robot_retarget.runtime.pmnet import FastPMnetRetargeter
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from tests.pipeline.stream_equality import assert_same_stream
 
@@ -64,5 +63,4 @@ def test_centred_movement_stays_on_torch(demo: HumanMotion) -> None:
     """The paper's centred convolutions need future frames: no online twin, as in torch."""
     src = demo.skeleton.offsets
     assert isinstance(online_retargeter(_pmnet(causal=False), src, src), OnlineRetargeter)
-    with pytest.raises(ValueError, match="no online path"):
-        FastPMnetRetargeter(_pmnet(causal=False).model, src, src)  # type: ignore[arg-type]
+    assert _pmnet(causal=False).model.runtime() is None

@@ -14,10 +14,10 @@ from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.nn.inference import LoadedModel
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.nn.models.residual import ResidualRetargeter
-from robot_retarget.pipeline.fast_copy import online_retargeter
-from robot_retarget.pipeline.fast_residual import FastResidualRetargeter
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.runtime.loader import online_retargeter
+from robot_retarget.runtime.residual import FastResidualRetargeter
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from tests.pipeline.stream_equality import assert_same_stream
 
@@ -75,7 +75,7 @@ def test_wrong_shapes_raise(demo: HumanMotion) -> None:
     with pytest.raises(ValueError, match="root_pos"):
         fast.step(demo.local_quats[0], np.zeros(2))
     with pytest.raises(ValueError, match="target_offsets"):
-        FastResidualRetargeter(model.model, src, src[:5])
+        FastResidualRetargeter(model.model.export_weights(), src, src[:5])
 
 
 def test_inputs_are_not_modified(demo: HumanMotion) -> None:
@@ -94,8 +94,8 @@ def test_rotation_vectors_agree_with_the_geometry_module(
     rotvecs: np.ndarray, shrink: float
 ) -> None:
     """The fast shortest-arc log, for large, tiny and zero rotations and both signs of q."""
-    from robot_retarget.pipeline.numpy_frame import from_rotvec as _from_rotvec
-    from robot_retarget.pipeline.numpy_frame import rotvec as _rotvec
+    from robot_retarget.runtime.frame import from_rotvec as _from_rotvec
+    from robot_retarget.runtime.frame import rotvec as _rotvec
 
     for r in (rotvecs, rotvecs * shrink, np.zeros((2, 3))):
         q = quat.from_rotation_vector(r)

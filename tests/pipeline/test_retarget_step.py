@@ -10,9 +10,9 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.nn.inference import OnlineRetargeter, load_model
 from robot_retarget.optimize import Retargeter, SolveStatus, targets_from_rotations
-from robot_retarget.pipeline.fast_copy import FastCopyRetargeter
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.runtime.copy import FastCopyRetargeter
 
 
 def test_step_output_is_inside_the_limits(step: RetargetStep, demo: HumanMotion) -> None:

@@ -19,7 +19,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import torch
 from torch import nn
@@ -34,6 +34,9 @@ from robot_retarget.nn.features import (
     local_positions,
 )
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
+
+if TYPE_CHECKING:
+    from robot_retarget.runtime.model import RuntimeModel
 
 Tensor = torch.Tensor
 
@@ -96,6 +99,11 @@ class RetargetModel(nn.Module, ABC):
         self.num_joints = len(CANONICAL_JOINTS)
         self.parents = CANONICAL_PARENTS
         self._stream = FeatureStream(self.parents)
+
+    def runtime(self) -> RuntimeModel | None:
+        """This model's numpy runtime (robot_retarget.runtime) for the live path, or None when
+        its architecture has none (the live path then steps it through torch)."""
+        return None
 
     @abstractmethod
     def config(self) -> dict[str, Any]:

@@ -8,12 +8,15 @@ they are (the target's FK then respects its own bone lengths) and root velocitie
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import torch
 
 from robot_retarget.nn.features import FrameFeatures, MotionFeatures, skeleton_height
 from robot_retarget.nn.models.base import Prediction, RetargetModel
+
+if TYPE_CHECKING:
+    from robot_retarget.runtime.model import RuntimeModel
 
 Tensor = torch.Tensor
 
@@ -26,6 +29,13 @@ class CopyModel(RetargetModel):
 
     def config(self) -> dict[str, Any]:
         return {}
+
+    def runtime(self) -> RuntimeModel | None:
+        if type(self) not in (CopyModel, CopyScaledModel):
+            return None  # a subclass may change what is copied: it keeps the torch step
+        from robot_retarget.runtime.model import RuntimeModel
+
+        return RuntimeModel(name=self.name, architecture=self.name)
 
     def velocity_scale(self, src_offsets: Tensor, tgt_offsets: Tensor) -> Tensor | None:
         """Factor (B,) on the root's x, y, z velocity; None keeps it."""

@@ -23,7 +23,7 @@ raises). Inputs are standardised with statistics fitted from training data.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -42,6 +42,10 @@ from robot_retarget.nn.features import (
 from robot_retarget.nn.models.base import Prediction, RetargetModel
 from robot_retarget.nn.models.normalization import Standardizer
 from robot_retarget.nn.models.weight_export import layer_pair, linear_pairs, to_numpy
+from robot_retarget.runtime.pmnet import PMnetWeights
+
+if TYPE_CHECKING:
+    from robot_retarget.runtime.model import RuntimeModel
 
 Tensor = torch.Tensor
 FloatArray = npt.NDArray[np.float64]
@@ -185,6 +189,14 @@ class PMnet(RetargetModel):
         vel_b = self._movement_out(self.movement(nv_a), tgt_offsets)
         return Prediction(local_quats=q_b, root_vel=vel_b, extras={"q_a": q_a, "phi_a": phi_a})
 
+    def runtime(self) -> RuntimeModel | None:
+        """The numpy step exists for the causal movement regressor only (as the torch one)."""
+        if not self.causal_movement:
+            return None
+        from robot_retarget.runtime.model import RuntimeModel
+
+        return RuntimeModel(name=self.name, architecture="pmnet", weights=self.export_weights())
+
     @torch.no_grad()
     def export_weights(self) -> PMnetWeights:
         """The parameters as numpy arrays (see :class:`PMnetWeights`)."""
@@ -236,25 +248,6 @@ class PMnet(RetargetModel):
         nv_a = self.movement_norm(normalize_movement(src.root_vel, c.scale_src))
         nv_b = self.movement_norm.inverse(self.movement.step(nv_a))
         return q_b, denormalize_movement(nv_b, c.scale_tgt)
-
-
-@dataclass(frozen=True)
-class PMnetWeights:
-    """A PMnet's parameters as float64 numpy arrays, for the numpy twin of its online step
-    (robot_retarget.pipeline.fast_pmnet); Linear layers as (weight, bias), convolutions as
-    (weight (out, in, k), bias)."""
-
-    pose_mean: FloatArray
-    pose_std: FloatArray
-    offset_mean: FloatArray
-    offset_std: FloatArray
-    movement_mean: FloatArray
-    movement_std: FloatArray
-    encoder_layers: tuple[tuple[FloatArray, FloatArray], ...]
-    to_quat: tuple[FloatArray, FloatArray]
-    to_delta: tuple[FloatArray, FloatArray]
-    conv1: tuple[FloatArray, FloatArray]
-    conv2: tuple[FloatArray, FloatArray]
 
 
 @dataclass(frozen=True)

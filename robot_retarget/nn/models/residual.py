@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -58,6 +58,10 @@ from robot_retarget.nn.models.base import Prediction, RetargetModel
 from robot_retarget.nn.models.normalization import Standardizer
 from robot_retarget.nn.models.pmnet import hamilton
 from robot_retarget.nn.models.weight_export import layer_pair, linear_pairs, to_numpy
+from robot_retarget.runtime.residual import ResidualWeights
+
+if TYPE_CHECKING:
+    from robot_retarget.runtime.model import RuntimeModel
 
 Tensor = torch.Tensor
 FloatArray = npt.NDArray[np.float64]
@@ -198,25 +202,6 @@ class CausalVelocityFilter(nn.Module):
         return (self.weights()[None, :, None] * window).sum(dim=1)
 
 
-@dataclass(frozen=True)
-class ResidualWeights:
-    """A residual model's parameters as float64 numpy arrays, for numpy twins of its step
-    (robot_retarget.pipeline.fast_residual): every Linear as (weight, bias) in order."""
-
-    denoiser_layers: tuple[tuple[FloatArray, FloatArray], ...]
-    denoiser_history: int
-    pose_mean: FloatArray
-    pose_std: FloatArray
-    rot_mean: FloatArray
-    rot_std: FloatArray
-    offset_mean: FloatArray
-    offset_std: FloatArray
-    correction_layers: tuple[tuple[FloatArray, FloatArray], ...]
-    to_delta: tuple[FloatArray, FloatArray]
-    max_correction_rad: float
-    root_taps: FloatArray
-
-
 class ResidualRetargeter(RetargetModel):
     """Copy-scaled plus a learned denoiser and pose correction (see the module docstring)."""
 
@@ -272,6 +257,11 @@ class ResidualRetargeter(RetargetModel):
         self.pose_norm.fit(features.pose_flat / h[:, None, None])
         self.rot_norm.fit(qt.to_rotation_6d(features.local_quats).flatten(-2))
         self.offset_norm.fit(offsets.flatten(-2) / h[:, None])
+
+    def runtime(self) -> RuntimeModel | None:
+        from robot_retarget.runtime.model import RuntimeModel
+
+        return RuntimeModel(name=self.name, architecture="residual", weights=self.export_weights())
 
     @torch.no_grad()
     def export_weights(self) -> ResidualWeights:

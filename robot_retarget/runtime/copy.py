@@ -3,7 +3,7 @@
 The ``copy`` and ``copy-scaled`` models (:mod:`robot_retarget.nn.models.copy`) only pass the
 rotations through and re-integrate the root; running them through torch costs ~0.35 ms per
 frame in tensor-op overhead. :class:`FastCopyRetargeter` does the same arithmetic with the numpy
-``FeatureStream`` (robot_retarget.pipeline.numpy_frame.FrameStream: heading from the root's +X
+``FeatureStream`` (robot_retarget.runtime.frame.FrameStream: heading from the root's +X
 column, heading-free root velocity, then optional height-ratio scaling, integration from the
 source's first root position and heading, heading put back on the root rotation), so its
 output equals :class:`robot_retarget.nn.inference.OnlineRetargeter`'s to rounding (tested).
@@ -16,10 +16,7 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
-from robot_retarget.nn.models.base import RetargetModel
-from robot_retarget.nn.models.copy import CopyModel, CopyScaledModel
-from robot_retarget.pipeline.numpy_frame import FrameStream, check_frame, check_offsets
+from robot_retarget.runtime.frame import FrameStream, check_frame, check_offsets
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 from robot_retarget.skeleton.skeleton import Skeleton
 
@@ -45,8 +42,8 @@ def rest_height_m(offsets: FloatArray) -> float:
 class FastCopyRetargeter:
     """Online ``copy`` / ``copy-scaled`` on numpy: ``step`` (22, 4), (3,) → (22, 4), (3,).
 
-    ``velocity_scale`` multiplies the root's x, y, z velocity (1.0 for ``copy``); use
-    :func:`online_retargeter` to get the right one for a model.
+    ``velocity_scale`` multiplies the root's x, y, z velocity: 1.0 for ``copy``, the
+    target/source height ratio for ``copy-scaled`` (the RuntimeModel picks it).
     """
 
     def __init__(
@@ -70,37 +67,3 @@ class FastCopyRetargeter:
         vel, dyaw = self._stream.push(q, root)  # q's root is heading-free from here
         out_pos, out_yaw = self._stream.integrate(vel * self.velocity_scale, dyaw)
         return self._stream.apply_heading(q, out_yaw), out_pos
-
-
-def is_copy_baseline(model: LoadedModel | RetargetModel) -> bool:
-    """True for exactly the ``copy`` / ``copy-scaled`` classes (subclasses may change them)."""
-    net = model.model if isinstance(model, LoadedModel) else model
-    return type(net) in (CopyModel, CopyScaledModel)
-
-
-def online_retargeter(
-    model: LoadedModel | RetargetModel,
-    source_offsets: npt.ArrayLike,
-    target_offsets: npt.ArrayLike,
-) -> OnlineStep:
-    """The live network step for ``model``: the numpy twins for the copy baselines, the
-    residual model and PMnet (pipeline.fast_residual, pipeline.fast_pmnet), else
-    :class:`OnlineRetargeter` (torch)."""
-    from robot_retarget.nn.models.pmnet import PMnet
-    from robot_retarget.nn.models.residual import ResidualRetargeter
-    from robot_retarget.pipeline.fast_pmnet import FastPMnetRetargeter
-    from robot_retarget.pipeline.fast_residual import FastResidualRetargeter
-
-    net = model.model if isinstance(model, LoadedModel) else model
-    if type(net) is ResidualRetargeter:
-        return FastResidualRetargeter(net, source_offsets, target_offsets)
-    if type(net) is PMnet and net.causal_movement:
-        return FastPMnetRetargeter(net, source_offsets, target_offsets)
-    if not is_copy_baseline(model):
-        return OnlineRetargeter(model, source_offsets, target_offsets)
-    scale = 1.0
-    if type(net) is CopyScaledModel:
-        src = check_offsets("source_offsets", source_offsets)
-        tgt = check_offsets("target_offsets", target_offsets)
-        scale = rest_height_m(tgt) / rest_height_m(src)
-    return FastCopyRetargeter(source_offsets, target_offsets, scale)

@@ -12,12 +12,13 @@ with its per-skeleton bias folded in, the root filter and the integration. Its o
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.nn.models.residual import ResidualRetargeter
-from robot_retarget.pipeline.fast_copy import rest_height_m
-from robot_retarget.pipeline.numpy_frame import (
+from robot_retarget.runtime.copy import rest_height_m
+from robot_retarget.runtime.frame import (
     NUM_JOINTS,
     FrameStream,
     TreeKinematics,
@@ -38,12 +39,31 @@ _J = NUM_JOINTS
 _REL_SCALE = 10.0  # as robot_retarget.nn.models.residual
 
 
+@dataclass(frozen=True)
+class ResidualWeights:
+    """A residual model's parameters as float64 numpy arrays, for numpy twins of its step
+    (here): every Linear as (weight, bias) in order."""
+
+    denoiser_layers: tuple[tuple[FloatArray, FloatArray], ...]
+    denoiser_history: int
+    pose_mean: FloatArray
+    pose_std: FloatArray
+    rot_mean: FloatArray
+    rot_std: FloatArray
+    offset_mean: FloatArray
+    offset_std: FloatArray
+    correction_layers: tuple[tuple[FloatArray, FloatArray], ...]
+    to_delta: tuple[FloatArray, FloatArray]
+    max_correction_rad: float
+    root_taps: FloatArray
+
+
 class FastResidualRetargeter:
     """Online residual model on numpy: ``step`` (22, 4), (3,) → (22, 4), (3,)."""
 
     def __init__(
         self,
-        model: ResidualRetargeter,
+        weights: ResidualWeights,
         source_offsets: npt.ArrayLike,
         target_offsets: npt.ArrayLike,
     ) -> None:
@@ -54,7 +74,7 @@ class FastResidualRetargeter:
         self._stream = FrameStream()
         h_src, h_tgt = rest_height_m(src), rest_height_m(tgt)
         self._ratio = h_tgt / h_src
-        w = model.export_weights()
+        w = weights
         self._history = w.denoiser_history
         # The joint one-hot code's share of the denoiser's first layer is a per-joint bias.
         (d0, e0), *self._den_rest = w.denoiser_layers

@@ -10,12 +10,12 @@ output equals :class:`robot_retarget.nn.inference.OnlineRetargeter`'s to float32
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.nn.features import PMNET_SCALE_JOINTS
-from robot_retarget.nn.models.pmnet import PMnet
-from robot_retarget.pipeline.numpy_frame import (
+from robot_retarget.runtime.frame import (
     FrameStream,
     TreeKinematics,
     check_frame,
@@ -24,9 +24,35 @@ from robot_retarget.pipeline.numpy_frame import (
     matrices,
     qmul,
 )
-from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
+from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
 
 FloatArray = npt.NDArray[np.float64]
+
+# PMnet eq. 6: the scale factor S sums the bone lengths of the root, spine, neck and left-leg
+# joints. Their N_s only rescales Mixamo centimetres; our offsets are metres, so N_s = 1.
+PMNET_SCALE_JOINTS: tuple[int, ...] = (
+    Joint.Hips, Joint.Spine, Joint.Spine1, Joint.Spine2, Joint.Neck,
+    Joint.LeftUpLeg, Joint.LeftLeg, Joint.LeftFoot,
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PMnetWeights:
+    """A PMnet's parameters as float64 numpy arrays, for the numpy twin of its online step
+    (here); Linear layers as (weight, bias), convolutions as
+    (weight (out, in, k), bias)."""
+
+    pose_mean: FloatArray
+    pose_std: FloatArray
+    offset_mean: FloatArray
+    offset_std: FloatArray
+    movement_mean: FloatArray
+    movement_std: FloatArray
+    encoder_layers: tuple[tuple[FloatArray, FloatArray], ...]
+    to_quat: tuple[FloatArray, FloatArray]
+    to_delta: tuple[FloatArray, FloatArray]
+    conv1: tuple[FloatArray, FloatArray]
+    conv2: tuple[FloatArray, FloatArray]
 
 
 def pmnet_scale(offsets: FloatArray) -> float:
@@ -42,16 +68,14 @@ class FastPMnetRetargeter:
     """Online PMnet on numpy: ``step`` (22, 4), (3,) → (22, 4), (3,)."""
 
     def __init__(
-        self, model: PMnet, source_offsets: npt.ArrayLike, target_offsets: npt.ArrayLike
+        self, weights: PMnetWeights, source_offsets: npt.ArrayLike, target_offsets: npt.ArrayLike
     ) -> None:
-        if not model.causal_movement:
-            raise ValueError("PMnet with a centred movement regressor has no online path")
         src = check_offsets("source_offsets", source_offsets)
         tgt = check_offsets("target_offsets", target_offsets)
         self._src = src
         self._kin = TreeKinematics(CANONICAL_PARENTS)
         self._stream = FrameStream()
-        w = model.export_weights()
+        w = weights
         self._pose_mean, self._pose_std = w.pose_mean, w.pose_std
         # The matrix–vector products run in float32, as the torch model does: 4× faster than
         # float64 for 512-wide layers, whose weights then fit the cache.

@@ -1,0 +1,92 @@
+"""Find a model for the live path by name or path, without torch when a runtime file exists.
+
+Order: the built-in baselines (``copy``, ``copy-scaled``); a shipped runtime
+(``robot_retarget/data/checkpoints/<name>.npz``); a ``.npz`` path. Anything else — a torch
+checkpoint, a training run folder, a shipped name with no runtime file — is loaded through torch
+(:func:`robot_retarget.nn.inference.load_model`, imported only then), and its numpy runtime is
+used when its architecture has one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy.typing as npt
+
+from robot_retarget.runtime.model import OnlineStep, RuntimeModel, load_runtime
+
+if TYPE_CHECKING:
+    from robot_retarget.nn.inference import LoadedModel
+    from robot_retarget.nn.models.base import RetargetModel
+
+CHECKPOINT_DIR = Path(__file__).resolve().parents[1] / "data" / "checkpoints"
+BUILTIN_RUNTIMES: tuple[str, ...] = ("copy", "copy-scaled")
+
+
+def shipped_runtimes(directory: Path | None = None) -> dict[str, Path]:
+    """Runtime files shipped with the package, by name."""
+    d = CHECKPOINT_DIR if directory is None else directory
+    return {p.stem: p for p in sorted(d.glob("*.npz"))} if d.is_dir() else {}
+
+
+def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | LoadedModel:
+    """The model to stream with: a numpy :class:`RuntimeModel` whenever one exists, else the
+    torch model (which needs torch installed: ``pip install robot-retarget[train]``)."""
+    text = os.fspath(name_or_path)
+    if text in BUILTIN_RUNTIMES:
+        return RuntimeModel(name=text, architecture=text)
+    shipped = shipped_runtimes()
+    if text in shipped:
+        model = load_runtime(shipped[text])
+        return dataclasses.replace(model, name=text)
+    if text.endswith(".npz"):
+        return load_runtime(text)
+    try:
+        from robot_retarget.nn.inference import load_model
+    except ImportError as exc:
+        from robot_retarget.errors import ModelLoadError
+
+        raise ModelLoadError(
+            f"model {text!r} has no numpy runtime file and torch is not installed ({exc}); "
+            "install torch (pip install robot-retarget[train]) or export the checkpoint with "
+            "`robot-retarget export` where torch is",
+            model=text,
+        ) from None
+    loaded = load_model(text)
+    return runtime_of(loaded) or loaded
+
+
+def runtime_of(loaded: LoadedModel) -> RuntimeModel | None:
+    """The numpy runtime of a loaded torch model (its provenance kept), or None if its
+    architecture has none (NKN, a PMnet with centred convolutions)."""
+    runtime = loaded.model.runtime()
+    if runtime is None:
+        return None
+    return dataclasses.replace(
+        runtime,
+        name=loaded.name,
+        path=loaded.path,
+        data_hash=loaded.data_hash,
+        metadata=dict(loaded.metadata),
+    )
+
+
+def online_retargeter(
+    model: RuntimeModel | LoadedModel | RetargetModel,
+    source_offsets: npt.ArrayLike,
+    target_offsets: npt.ArrayLike,
+) -> OnlineStep:
+    """The live network step for ``model``: its numpy runtime when it has one (chosen by the
+    model, :meth:`RetargetModel.runtime`), else the torch model stepped frame by frame."""
+    if isinstance(model, RuntimeModel):
+        return model.online(source_offsets, target_offsets)
+    from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
+
+    net = model.model if isinstance(model, LoadedModel) else model
+    runtime = net.runtime()
+    if runtime is not None:
+        return runtime.online(source_offsets, target_offsets)
+    return OnlineRetargeter(model, source_offsets, target_offsets)

@@ -1,0 +1,238 @@
+"""A retargeting network as the live path runs it: numpy only, no torch.
+
+A :class:`RuntimeModel` is what a trained model exports for streaming and converting: its
+architecture, its weights as numpy arrays, and where it came from. ``online(source, target)``
+builds the per-frame step for one performer and one robot skeleton, the same arithmetic as the
+torch model's online step (tested to float32 rounding). Torch is needed to train a model, not
+to run one.
+
+File format (``.npz``, written by ``python launch.py export`` and ``train``): one array per
+weight under a readable dotted name (``correction_layers.0.weight``) and ``__meta__``, a JSON
+document: ``format`` (this module's :data:`FORMAT_VERSION`), ``architecture``, ``name``,
+``checkpoint_sha256`` (the torch checkpoint it was exported from), ``data_hash`` and
+``metadata`` (what the checkpoint stored). Loading checks every name and shape the
+architecture needs and says which one is wrong.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.errors import ModelLoadError
+from robot_retarget.runtime.copy import FastCopyRetargeter, rest_height_m
+from robot_retarget.runtime.frame import check_offsets
+from robot_retarget.runtime.pmnet import FastPMnetRetargeter, PMnetWeights
+from robot_retarget.runtime.residual import FastResidualRetargeter, ResidualWeights
+
+FloatArray = npt.NDArray[np.float64]
+
+FORMAT_VERSION = 1
+_META = "__meta__"
+Weights = ResidualWeights | PMnetWeights
+
+
+class OnlineStep(Protocol):
+    """What the live step needs from a network: per-frame ``step`` and ``reset``."""
+
+    def reset(self) -> None: ...
+
+    def step(
+        self, local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
+    ) -> tuple[FloatArray, FloatArray]: ...
+
+
+def _copy(_w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+    return FastCopyRetargeter(src, tgt, 1.0)
+
+
+def _copy_scaled(_w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+    return FastCopyRetargeter(src, tgt, rest_height_m(tgt) / rest_height_m(src))
+
+
+def _residual(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+    assert isinstance(w, ResidualWeights)  # guaranteed by RuntimeModel.__post_init__
+    return FastResidualRetargeter(w, src, tgt)
+
+
+def _pmnet(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+    assert isinstance(w, PMnetWeights)
+    return FastPMnetRetargeter(w, src, tgt)
+
+
+# architecture → (weights class or None, step factory)
+ARCHITECTURES: dict[
+    str, tuple[type[Weights] | None, Callable[[Weights | None, FloatArray, FloatArray], OnlineStep]]
+] = {
+    "copy": (None, _copy),
+    "copy-scaled": (None, _copy_scaled),
+    "residual": (ResidualWeights, _residual),
+    "pmnet": (PMnetWeights, _pmnet),
+}
+
+
+@dataclass(frozen=True)
+class RuntimeModel:
+    """A network ready for the live path: ``architecture`` (a key of :data:`ARCHITECTURES`),
+    ``weights`` (None for the parameter-free baselines), provenance."""
+
+    name: str
+    architecture: str
+    weights: Weights | None = None
+    path: Path | None = None
+    checkpoint_sha256: str = ""
+    data_hash: str = ""
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.architecture not in ARCHITECTURES:
+            raise ModelLoadError(
+                f"no numpy runtime for architecture {self.architecture!r} (runtimes: "
+                f"{', '.join(ARCHITECTURES)})",
+                path=self.path,
+            )
+        kind = ARCHITECTURES[self.architecture][0]
+        if (kind is None) != (self.weights is None) or (
+            kind is not None and not isinstance(self.weights, kind)
+        ):
+            raise ModelLoadError(
+                f"{self.architecture} needs {kind.__name__ if kind else 'no'} weights, got "
+                f"{type(self.weights).__name__}",
+                path=self.path,
+            )
+
+    def online(self, source_offsets: npt.ArrayLike, target_offsets: npt.ArrayLike) -> OnlineStep:
+        """The per-frame step for a performer (source) and robot (target) rest skeleton."""
+        src = check_offsets("source_offsets", source_offsets)
+        tgt = check_offsets("target_offsets", target_offsets)
+        return ARCHITECTURES[self.architecture][1](self.weights, src, tgt)
+
+
+# ----------------------------------------------------------------------------- file format
+def _flatten(prefix: str, value: Any, out: dict[str, np.ndarray]) -> None:
+    if isinstance(value, tuple):
+        for k, item in enumerate(value):
+            _flatten(f"{prefix}.{k}", item, out)
+    else:
+        a = np.asarray(value)
+        # Trained weights are float32 in torch: stored as such when that loses nothing.
+        if a.dtype == np.float64 and np.array_equal(a.astype(np.float32), a):
+            a = a.astype(np.float32)
+        out[prefix] = a
+
+
+def save_runtime(model: RuntimeModel, path: str | os.PathLike[str]) -> Path:
+    """Write ``model`` as an ``.npz`` runtime file (see the module docstring)."""
+    out = Path(path)
+    arrays: dict[str, np.ndarray] = {}
+    if model.weights is not None:
+        for f in dataclasses.fields(model.weights):
+            _flatten(f.name, getattr(model.weights, f.name), arrays)
+    meta = {
+        "format": FORMAT_VERSION,
+        "architecture": model.architecture,
+        "name": model.name,
+        "checkpoint_sha256": model.checkpoint_sha256,
+        "data_hash": model.data_hash,
+        "metadata": model.metadata,
+    }
+    arrays[_META] = np.array(json.dumps(meta, default=str))
+    with out.open("wb") as fh:
+        np.savez(fh, allow_pickle=False, **arrays)
+    return out
+
+
+def _read_weights(kind: type[Weights], arrays: dict[str, np.ndarray], path: Path) -> Weights:
+    """The weights dataclass from its dotted arrays: nested tuples are found by index."""
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(kind):
+        if f.name in arrays:
+            a = arrays[f.name]
+            values[f.name] = a.item() if a.ndim == 0 else np.asarray(a, dtype=np.float64)
+            continue
+        values[f.name] = _nested(f.name, arrays, path)
+    return kind(**values)
+
+
+def _nested(name: str, arrays: dict[str, np.ndarray], path: Path) -> Any:
+    children = sorted(
+        {int(k[len(name) + 1 :].split(".")[0]) for k in arrays if k.startswith(name + ".")}
+    )
+    if not children:
+        raise ModelLoadError(f"runtime file has no weights named {name!r}", path=path)
+    out = []
+    for k in children:
+        key = f"{name}.{k}"
+        if key in arrays:
+            out.append(np.asarray(arrays[key], dtype=np.float64))
+        else:
+            out.append(_nested(key, arrays, path))
+    return tuple(out)
+
+
+def load_runtime(path: str | os.PathLike[str]) -> RuntimeModel:
+    """Read a runtime ``.npz``; ModelLoadError names the file and what is wrong."""
+    p = Path(path)
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except FileNotFoundError:
+        raise ModelLoadError("runtime file not found", path=p) from None
+    except (OSError, ValueError) as exc:
+        raise ModelLoadError(f"not a runtime .npz file ({exc})", path=p) from None
+    if _META not in arrays:
+        raise ModelLoadError("runtime file has no __meta__ entry (not exported by export)", path=p)
+    try:
+        meta = json.loads(str(arrays.pop(_META)))
+    except json.JSONDecodeError as exc:
+        raise ModelLoadError(f"runtime metadata is not JSON ({exc})", path=p) from None
+    if meta.get("format") != FORMAT_VERSION:
+        raise ModelLoadError(
+            f"runtime format {meta.get('format')!r}, this version reads {FORMAT_VERSION}; "
+            "export the checkpoint again",
+            path=p,
+        )
+    arch = str(meta.get("architecture"))
+    if arch not in ARCHITECTURES:
+        raise ModelLoadError(
+            f"unknown architecture {arch!r} (runtimes: {', '.join(ARCHITECTURES)})", path=p
+        )
+    kind = ARCHITECTURES[arch][0]
+    try:
+        weights = None if kind is None else _read_weights(kind, arrays, p)
+    except (TypeError, ValueError) as exc:
+        raise ModelLoadError(f"runtime weights do not fit {arch} ({exc})", path=p) from None
+    model = RuntimeModel(
+        name=str(meta.get("name", p.stem)),
+        architecture=arch,
+        weights=weights,
+        path=p,
+        checkpoint_sha256=str(meta.get("checkpoint_sha256", "")),
+        data_hash=str(meta.get("data_hash", "")),
+        metadata=dict(meta.get("metadata", {})),
+    )
+    _smoke_test(model)
+    return model
+
+
+def _smoke_test(model: RuntimeModel) -> None:
+    """One step on the reference skeleton: weights of the wrong shapes fail here, at load."""
+    from robot_retarget.skeleton.canonical import default_canonical_skeleton
+
+    offsets = default_canonical_skeleton().offsets
+    rest = np.zeros((len(offsets), 4))
+    rest[:, 0] = 1.0
+    try:
+        model.online(offsets, offsets).step(rest, np.zeros(3))
+    except (ValueError, IndexError) as exc:
+        raise ModelLoadError(
+            f"runtime weights do not fit {model.architecture}: {exc}", path=model.path
+        ) from None
