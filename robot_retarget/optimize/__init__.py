@@ -5,11 +5,14 @@ frame, warm-started) and ``solve_clip`` (offline, sliding windows solved jointly
 from :func:`targets_from_rotations` (canonical local rotations → bone directions / normals /
 end effectors in a heading-free body frame) or are built directly as :class:`FrameTargets`.
 
-Formulation (per frame, see :mod:`.formulation`): weighted least squares on unit bone
-directions, bone normals (roll), optional end-effector positions, velocity / acceleration
-smoothness and a pull to the init pose; hard: joint limits ∩ velocity box as variable bounds,
-one ``atan2`` twist row per bone (±α, 100° by default), optional feet-above-ground rows.
-Every output is projected onto the merged box and checked (:mod:`.limits`).
+Formulation (per frame, see :mod:`.formulation`): a sum of named cost terms (:mod:`.terms`,
+assembled by :mod:`.objective`, parameters laid out once by :mod:`.parameter_layout`) — unit
+bone directions, bone normals (roll), optional end-effector and limb-keypoint positions,
+velocity / acceleration smoothness and a pull to the init pose; hard: joint limits ∩ velocity
+box as variable bounds, one ``atan2`` twist row per bone (±α, 100° by default), optional
+feet-above-ground rows. Every output is projected onto the merged box and checked
+(:mod:`.limits`). A sequence's first frame (:meth:`Retargeter.settle`) starts every limb in its
+best branch (:mod:`.limb_branches`).
 
 Solver choice, measured with ``bench solve`` on OP3 (20 joints, 12 bones, CMU 02_05 boxing,
 first 1200 frames at 120 fps), one core (``taskset -c 1``) of the 2-core dev machine while other

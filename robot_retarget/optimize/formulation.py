@@ -3,16 +3,18 @@
 Decision variables: q_0 … q_{W−1} (W·J). Everything that changes per call is a parameter or a
 bound, so one compiled solver serves every frame:
 
-- parameters (per frame): bone target directions and normals, per-bone weights, end-effector
-  targets and weights; (shared) q_{−1}, q_{−2} (the committed history), q_init, 1/dt and the
-  smoothness / init weights;
+- parameters: whatever the objective's named cost terms declare (:mod:`.objective`,
+  :mod:`.terms`: per frame e.g. bone target directions and weights; shared e.g. smoothness
+  weights), plus the committed history q_{−1}, q_{−2} and 1/dt, laid out once by name
+  (:mod:`.parameter_layout`);
 - variable bounds: joint limits merged with the velocity box (computed in numpy per call);
 - constraint rows: per frame the twist of every bone (one ``atan2`` row each, bounds ±α) and the
   height of each foot (lower bound −root height; −10⁹ m when unknown); for t ≥ 1 the velocity rows
   q_t − q_{t−1} ∈ ±v_max·dt. W = 1 is the online problem (no velocity rows: the box does it).
 
-The cost is ``|r|²`` of one vector of weighted residuals ``r`` (returned as ``nlp["r"]``), so the
-solver can use the Gauss–Newton Hessian 2·JᵀJ as well as the exact one.
+The cost is ``|r|²`` of one vector of weighted residuals ``r`` (the terms' residuals of every
+frame, returned as ``nlp["r"]``), so the solver can use the Gauss–Newton Hessian 2·JᵀJ as well
+as the exact one.
 
 Twist without quaternions: for a rotation R with axial vector ``ax(R) = ½(R₃₂−R₂₃, R₁₃−R₃₁,
 R₂₁−R₁₂) = 2w·v`` and ``1 + tr R = 4w²``, the swing–twist twist angle about unit ``a`` is
@@ -22,6 +24,7 @@ R₂₁−R₁₂) = 2w·v`` and ``1 + tr R = 4w²``, the swing–twist twist an
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -35,8 +38,12 @@ from robot_retarget.optimize.bone_model import (
     end_effector_frames,
     foot_frames,
 )
+from robot_retarget.optimize.parameter_layout import Parameter, ParameterLayout
 from robot_retarget.optimize.symbolic_kinematics import SymbolicKinematics
 from robot_retarget.robot.config import FloatArray, RobotConfig
+
+if TYPE_CHECKING:  # the objective's terms build on this module
+    from robot_retarget.optimize.objective import Objective
 
 _NORM_EPS = 1e-12  # keeps the bone-length sqrt differentiable at zero length
 
@@ -48,43 +55,19 @@ def twist_expr(r: ca.SX, axis: FloatArray) -> ca.SX:
 
 
 @dataclass(frozen=True)
-class FrameLayout:
-    """Offsets of one frame's parameters inside the parameter vector."""
+class FrameQuantities:
+    """The robot's forward kinematics at one frame's joint angles (SX), for the cost terms."""
 
-    num_bones: int
-    num_ee: int
+    bone_directions: ca.SX  # (3B,) unit, root frame
+    bone_normals: ca.SX  # (3B,) unit
+    ee_positions: ca.SX  # (3E,) m, root frame
+    bone_vectors: ca.SX  # (3B,) m, end minus start frame of each bone, root frame
 
-    @property
-    def size(self) -> int:
-        return 8 * self.num_bones + 4 * self.num_ee
 
-    # Slices relative to the frame's start: dirs (B·3), normals (B·3), w_dir (B), w_ori (B),
-    # ee (E·3), w_ee (E).
-    @property
-    def dirs(self) -> slice:
-        return slice(0, 3 * self.num_bones)
-
-    @property
-    def normals(self) -> slice:
-        return slice(3 * self.num_bones, 6 * self.num_bones)
-
-    @property
-    def w_dir(self) -> slice:
-        return slice(6 * self.num_bones, 7 * self.num_bones)
-
-    @property
-    def w_ori(self) -> slice:
-        return slice(7 * self.num_bones, 8 * self.num_bones)
-
-    @property
-    def ee(self) -> slice:
-        b = 8 * self.num_bones
-        return slice(b, b + 3 * self.num_ee)
-
-    @property
-    def w_ee(self) -> slice:
-        b = 8 * self.num_bones + 3 * self.num_ee
-        return slice(b, b + self.num_ee)
+# Constraint rows g of a window: per frame the twist of every bone and each foot's height,
+# then (W ≥ 2) the velocity rows q_t − q_{t−1}, t = 1 … W−1, after the frame blocks.
+TWIST_ROWS = "twist"
+FOOT_ROWS = "foot_height"
 
 
 class RobotProblem:
@@ -101,7 +84,9 @@ class RobotProblem:
         self.bones: tuple[BoneGeometry, ...] = build_bones(config, carrier_of)
         self.ee_frames = end_effector_frames(config)
         self.feet = foot_frames(config)
-        self.layout = FrameLayout(len(self.bones), len(self.ee_frames))
+        self.constraint_layout = ParameterLayout(
+            (Parameter(TWIST_ROWS, len(self.bones)), Parameter(FOOT_ROWS, len(self.feet)))
+        )
         # Numeric FK at q = 0 fixes each bone's alignment constant.
         zero = np.zeros(self.num_joints)
         starts = tuple(b.start_frame for b in self.bones)
@@ -127,6 +112,10 @@ class RobotProblem:
         self._q = q
         self._kin = kin
         # Per-frame expressions of q, reused by every window size through substitution.
+        self.bone_lengths = np.linalg.norm(p_end - p_start, axis=0)  # (B,) m, at q = 0
+        self.bone_vectors = [
+            kin.position(b.end_frame) - kin.position(b.start_frame) for b in self.bones
+        ]
         self.bone_dirs = [self._direction(b) for b in self.bones]
         self.bone_rots = [
             kin.rotation(b.carrier_link) @ ca.SX(c)
@@ -164,58 +153,47 @@ class RobotProblem:
 
     @property
     def num_constraints_per_frame(self) -> int:
-        return len(self.bones) + len(self.feet)
+        return self.constraint_layout.frame_size
 
-    def shared_param_size(self) -> int:
-        return 3 * self.num_joints + 4  # q_prev, q_prev2, q_init, inv_dt, w_vel, w_acc, w_init
+    def build_nlp(self, window: int, objective: Objective | None = None) -> dict[str, ca.SX]:
+        """The NLP dict (x, p, f, g, r) for ``window`` frames solved jointly; ``p`` is laid out
+        by ``objective`` (default: the Retargeter's terms with default settings)."""
+        if objective is None:
+            from robot_retarget.optimize.objective import retarget_objective
+            from robot_retarget.optimize.settings import RetargetSettings
 
-    def build_nlp(self, window: int) -> dict[str, ca.SX]:
-        """The NLP dict (x, p, f, g) for ``window`` frames solved jointly."""
+            objective = retarget_objective(self, RetargetSettings())
         j = self.num_joints
-        lay = self.layout
+        nb, ne = len(self.bones), len(self.ee_frames)
         x = ca.SX.sym("x", window * j)
-        p = ca.SX.sym("p", window * lay.size + self.shared_param_size())
-        shared = window * lay.size
-        q_prev = p[shared : shared + j]
-        q_prev2 = p[shared + j : shared + 2 * j]
-        q_init = p[shared + 2 * j : shared + 3 * j]
-        inv_dt, w_vel, w_acc, w_init = (p[shared + 3 * j + i] for i in range(4))
+        p = ca.SX.sym("p", objective.layout.size(window))
         per_frame = ca.vertcat(
             *self.bone_dirs,
             *self.bone_normals,
             *self.ee_positions,
             *self.twists,
             *self.foot_heights,
+            *self.bone_vectors,
         )
         frame_fn = ca.Function("frame_terms", [self._q], [per_frame])
-        nb, ne = len(self.bones), len(self.ee_frames)
+        g_end = 6 * nb + 3 * ne + self.num_constraints_per_frame
         res: list[ca.SX] = []  # weighted residuals: cost = |res|², Gauss–Newton Hessian 2 JᵀJ
         g_rows: list[ca.SX] = []
+        q_prev2, q_prev = objective.history(p)
         history = [q_prev2, q_prev]
         for t in range(window):
             qt = x[t * j : (t + 1) * j]
-            pt = p[t * lay.size : (t + 1) * lay.size]
             terms = frame_fn(qt)
-            dirs = terms[0 : 3 * nb]
-            normals = terms[3 * nb : 6 * nb]
-            ee = terms[6 * nb : 6 * nb + 3 * ne]
-            rest = terms[6 * nb + 3 * ne :]
-            res.append(_weighted(dirs - pt[lay.dirs], pt[lay.w_dir], 3))
-            res.append(_weighted(normals - pt[lay.normals], pt[lay.w_ori], 3))
-            if ne:
-                res.append(_weighted(ee - pt[lay.ee], pt[lay.w_ee], 3))
-            res.append(ca.sqrt(w_vel) * inv_dt * (qt - history[-1]))
-            res.append(ca.sqrt(w_acc) * inv_dt * inv_dt * (qt - 2.0 * history[-1] + history[-2]))
-            res.append(ca.sqrt(w_init) * (qt - q_init))
-            g_rows.append(rest)
+            robot = FrameQuantities(
+                bone_directions=terms[0 : 3 * nb],
+                bone_normals=terms[3 * nb : 6 * nb],
+                ee_positions=terms[6 * nb : 6 * nb + 3 * ne],
+                bone_vectors=terms[g_end:],
+            )
+            res.extend(objective.residuals(t, p, qt, (history[-2], history[-1]), robot))
+            g_rows.append(terms[6 * nb + 3 * ne : g_end])  # twists, then foot heights
             history.append(qt)
         for t in range(1, window):
             g_rows.append(x[t * j : (t + 1) * j] - x[(t - 1) * j : t * j])
         r = ca.vertcat(*res)
         return {"x": x, "p": p, "f": ca.sumsqr(r), "g": ca.vertcat(*g_rows), "r": r}
-
-
-def _weighted(residual: ca.SX, weights: ca.SX, block: int) -> ca.SX:
-    """Residual blocks scaled by √weight, so that |out|² = Σ_k weights[k] · |block k|²."""
-    scale = ca.repmat(ca.sqrt(weights).T, block, 1).reshape((-1, 1))
-    return residual * scale

@@ -30,12 +30,10 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.errors import SolveError
+from robot_retarget.optimize.chains import SegmentFrames, coupled_groups
 from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver
 from robot_retarget.optimize.symbolic_kinematics import SymbolicKinematics
 from robot_retarget.robot.config import FloatArray, RobotConfig
-
-# A segment: (frames whose mean is its start, frames whose mean is its end).
-SegmentFrames = tuple[tuple[str, ...], tuple[str, ...]]
 
 _NORM_EPS = 1e-12  # keeps the segment-length sqrt differentiable
 _MAX_ITER = 40
@@ -127,7 +125,7 @@ class KinematicLimit:
         solver, jit_used = build_solver(spec, nlp)
         self._solver = BufferedSolver(solver, jit_used)
         self._angles = ca.Function("segment_angles", [q, target], [ca.vertcat(*exact)])
-        self.groups, self.group_joints = _coupled_groups(config, segments)
+        self.groups, self.group_joints = coupled_groups(config, segments)
         self._rng_seed = seed
         self.random_starts = random_starts
 
@@ -236,39 +234,4 @@ class KinematicLimit:
         return LimitResult(q_out, ang_out, choice, solve_time, solves)
 
 
-def _coupled_groups(
-    config: RobotConfig, segments: Sequence[SegmentFrames]
-) -> tuple[tuple[list[int], ...], tuple[npt.NDArray[np.int64], ...]]:
-    """Segments grouped by shared joints (union-find), with each group's joint indices."""
-    joint_of_child = {jc.child_link: i for i, jc in enumerate(config.joints)}
-    parent_of = {jc.child_link: jc.parent_link for jc in config.joints}
-    parent_of.update({f.name: f.parent_link for f in config.frames})
-
-    def joints_above(frame: str) -> set[int]:
-        out: set[int] = set()
-        # A link's origin lies on its own joint's axis: only the joints above it move it.
-        name = parent_of.get(frame, frame) if frame in joint_of_child else frame
-        while name in parent_of:
-            if name in joint_of_child:
-                out.add(joint_of_child[name])
-            name = parent_of[name]
-        return out
-
-    deps = [set().union(*(joints_above(f) for f in (*starts, *ends))) for starts, ends in segments]
-    group_of = list(range(len(segments)))
-
-    def root(i: int) -> int:
-        while group_of[i] != i:
-            i = group_of[i]
-        return i
-
-    for a in range(len(segments)):
-        for b in range(a + 1, len(segments)):
-            if deps[a] & deps[b]:
-                group_of[root(b)] = root(a)
-    roots = sorted({root(i) for i in range(len(segments))})
-    groups = tuple([i for i in range(len(segments)) if root(i) == r] for r in roots)
-    joints = tuple(
-        np.array(sorted(set().union(*(deps[i] for i in g))), dtype=np.int64) for g in groups
-    )
-    return groups, joints
+__all__ = ["KinematicLimit", "LimitResult", "SegmentFrames"]

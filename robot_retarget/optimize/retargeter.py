@@ -15,6 +15,7 @@ projection and says so (``SolveStatus.FALLBACK``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import time
@@ -26,8 +27,11 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.errors import SolveError
-from robot_retarget.optimize.formulation import RobotProblem
+from robot_retarget.optimize.chains import coupled_groups
+from robot_retarget.optimize.formulation import FOOT_ROWS, TWIST_ROWS, RobotProblem
+from robot_retarget.optimize.limb_branches import LimbBranches
 from robot_retarget.optimize.limits import project_sequence, velocity_box
+from robot_retarget.optimize.objective import ParameterWriter, retarget_objective
 from robot_retarget.optimize.result import SolveResult, SolveStatus
 from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver
@@ -82,12 +86,15 @@ class Retargeter:
         self.upper = config.upper
         self.max_velocity = config.max_velocity
         self.num_joints = config.num_joints
+        self.objective = retarget_objective(self.problem, self.settings)
         self._cache_dir = None if cache_dir is None else Path(cache_dir)
         self._compiler = compiler
         self._online = self._build(1, "daqp", jit, hessian="exact")
+        self._online_params = self._init_static(self._online, 1)
+        self._branches = self._build_branches(jit)
         self._offline: BufferedSolver | None = None  # built on first solve_clip
+        self._offline_params: ParameterWriter | None = None
         self._cost_fn: ca.Function | None = None
-        self._init_static(self._online, 1)
         self.reset()
 
     # ----------------------------------------------------------------- construction helpers
@@ -101,7 +108,7 @@ class Retargeter:
         tol_pr: float = 1e-9,
         tol_du: float = 1e-7,
     ) -> BufferedSolver:
-        nlp = self.problem.build_nlp(window)
+        nlp = self.problem.build_nlp(window, self.objective)
         spec = SolverSpec(
             name=_function_name(f"retarget_{self.config.name}_w{window}_{qpsol}_{hessian}"),
             qpsol=qpsol,
@@ -116,25 +123,30 @@ class Retargeter:
         solver, jit_used = build_solver(spec, nlp)
         return BufferedSolver(solver, jit_used)
 
-    def _init_static(self, s: BufferedSolver, window: int) -> None:
-        """Parameters and bounds that never change between calls."""
-        lay = self.problem.layout
-        st = self.settings
-        j = self.num_joints
+    def _init_static(self, s: BufferedSolver, window: int) -> ParameterWriter:
+        """Parameters and bounds that never change between calls; the solver's writer."""
+        writer = self.objective.writer(s.p, window)  # writes the terms' constants
+        rows = self.problem.constraint_layout
+        alpha = np.array([self.settings.twist_limit_rad(b.canonical) for b in self.problem.bones])
         for t in range(window):
-            o = t * lay.size
-            s.p[o + lay.w_dir.start : o + lay.w_dir.stop] = st.w_direction
-        shared = window * lay.size
-        s.p[shared + 2 * j : shared + 3 * j] = self.config.init_pose
-        s.p[shared + 3 * j + 1 : shared + 3 * j + 4] = (st.w_velocity, st.w_acceleration, st.w_init)
-        nb = len(self.problem.bones)
-        ng = self.problem.num_constraints_per_frame
-        alpha = np.array([st.twist_limit_rad(b.canonical) for b in self.problem.bones])
-        for t in range(window):
-            s.lbg[t * ng : t * ng + nb] = -alpha
-            s.ubg[t * ng : t * ng + nb] = alpha
-            s.lbg[t * ng + nb : (t + 1) * ng] = -_NO_GROUND
-            s.ubg[t * ng + nb : (t + 1) * ng] = np.inf
+            s.lbg[rows.frame(t, TWIST_ROWS)] = -alpha
+            s.ubg[rows.frame(t, TWIST_ROWS)] = alpha
+            s.lbg[rows.frame(t, FOOT_ROWS)] = -_NO_GROUND
+            s.ubg[rows.frame(t, FOOT_ROWS)] = np.inf
+        return writer
+
+    def _build_branches(self, jit: bool) -> LimbBranches | None:
+        """Multi-starts of every limb (≥ 2 bones sharing joints) on a twin of the online
+        solver; None when the robot has no such limb."""
+        segments = [((b.start_frame,), (b.end_frame,)) for b in self.problem.bones]
+        bone_groups, joint_groups = coupled_groups(self.config, segments)
+        limbs = tuple(
+            j for g, j in zip(bone_groups, joint_groups, strict=True) if len(g) >= 2 and j.size >= 2
+        )
+        if not limbs:
+            return None
+        twin = self._build(1, "daqp", jit, hessian="exact")
+        return LimbBranches(twin, self._init_static(twin, 1), limbs, self.lower, self.upper)
 
     @property
     def jit_used(self) -> bool:
@@ -208,52 +220,18 @@ class Retargeter:
             raise SolveError(f"dt_s must be a finite positive number of seconds, got {dt_s!r}")
         return dt
 
-    def _write_frame(self, s: BufferedSolver, t: int, targets: FrameTargets) -> None:
+    def _write_frame(
+        self, s: BufferedSolver, params: ParameterWriter, t: int, targets: FrameTargets
+    ) -> None:
         """Validate one frame's targets and write them into parameter block t."""
-        lay = self.problem.layout
-        nb, ne = lay.num_bones, lay.num_ee
-        o = t * lay.size
-        p = s.p
-        p[o + lay.dirs.start : o + lay.dirs.stop] = check_array(
-            "target directions", targets.directions, (nb, 3)
-        ).ravel()
-        if targets.normals is None:
-            p[o + lay.w_ori.start : o + lay.w_ori.stop] = 0.0
-        else:
-            p[o + lay.normals.start : o + lay.normals.stop] = check_array(
-                "target normals", targets.normals, (nb, 3)
-            ).ravel()
-            p[o + lay.w_ori.start : o + lay.w_ori.stop] = self.settings.w_orientation
-        if ne:
-            if targets.ee_positions is None:
-                p[o + lay.w_ee.start : o + lay.w_ee.stop] = 0.0
-            else:
-                p[o + lay.ee.start : o + lay.ee.stop] = check_array(
-                    "end-effector targets", targets.ee_positions, (ne, 3)
-                ).ravel()
-                w = (
-                    np.ones(ne)
-                    if targets.ee_weights is None
-                    else check_array("end-effector weights", targets.ee_weights, (ne,))
-                )
-                p[o + lay.w_ee.start : o + lay.w_ee.stop] = self.settings.w_end_effector * w
-        elif targets.ee_positions is not None and np.size(targets.ee_positions):
-            raise SolveError(
-                f"robot {self.config.name} maps no end effectors, but targets were given"
-            )
-        ng = self.problem.num_constraints_per_frame
+        params.write_frame(t, targets)
         if self.problem.feet:
             h = targets.root_height_m
             if h is not None and not math.isfinite(h):
                 raise SolveError(f"root_height_m must be finite, got {h}; no command was produced")
-            s.lbg[t * ng + nb : (t + 1) * ng] = -_NO_GROUND if h is None else -h
-
-    def _write_history(self, s: BufferedSolver, window: int, dt_s: float) -> None:
-        j = self.num_joints
-        shared = window * self.problem.layout.size
-        s.p[shared : shared + j] = self._q_prev
-        s.p[shared + j : shared + 2 * j] = self._q_prev2
-        s.p[shared + 3 * j] = 1.0 / dt_s
+            s.lbg[self.problem.constraint_layout.frame(t, FOOT_ROWS)] = (
+                -_NO_GROUND if h is None else -h
+            )
 
     def _constraint_violation(self, s: BufferedSolver) -> float:
         if s.g.size == 0:
@@ -265,7 +243,7 @@ class Retargeter:
     def _cost_at(self, s: BufferedSolver, x: FloatArray) -> float:
         """Cost of a (fallback) point of the online problem."""
         if self._cost_fn is None:
-            nlp = self.problem.build_nlp(1)
+            nlp = self.problem.build_nlp(1, self.objective)
             self._cost_fn = ca.Function("cost", [nlp["x"], nlp["p"]], [nlp["f"]])
         return float(self._cost_fn(x, s.p))
 
@@ -276,14 +254,14 @@ class Retargeter:
         """One frame. ``q_prev`` overrides the last command (e.g. a measured pose)."""
         dt = self._check_dt(dt_s)
         s = self._online
-        self._write_frame(s, 0, targets)  # validates before anything is solved
+        self._write_frame(s, self._online_params, 0, targets)  # validates before solving
         if q_prev is not None:
             self._q_prev = check_array("q_prev", q_prev, (self.num_joints,)).copy()
         lo, hi = velocity_box(self._q_prev, self.lower, self.upper, self.max_velocity * dt)
         s.lbx[:] = lo
         s.ubx[:] = hi
         np.minimum(np.maximum(s.x0, lo, out=s.x0), hi, out=s.x0)  # np.clip's wrapper is slower
-        self._write_history(s, 1, dt)
+        self._online_params.write_history(self._q_prev, self._q_prev2, dt)
         t0 = time.perf_counter()
         converged, iters, status_text = s.call()
         elapsed = time.perf_counter() - t0
@@ -328,6 +306,9 @@ class Retargeter:
         :meth:`solve` goes on from it at the velocity limits. Nothing here bounds the jump from
         the previous command: the caller either starts a file there or pursues the result at a
         limited speed (the control loop's ramp). Joint limits and twist bounds still hold.
+        Every limb is then solved from two more starts (its joints at zero and negated) and
+        takes the best optimum: a sequence keeps the branch it starts in
+        (:mod:`.limb_branches`).
         """
         result = self.solve(targets, _SETTLE_DT_S)
         for _ in range(max_solves - 1):
@@ -335,6 +316,13 @@ class Retargeter:
             result = self.solve(targets, _SETTLE_DT_S)
             if float(np.max(np.abs(result.q - before))) <= tol_rad:
                 break
+        if self._branches is not None:
+            # Every limb from its best start: a sequence keeps the branch it starts in.
+            q, cost = self._branches.best(self._online, result.q)
+            result = dataclasses.replace(result, q=q, cost=cost)
+            self._online.x0[:] = q
+            self._online.lam_x0[:] = 0.0
+            self._online.lam_g0[:] = 0.0
         self._q_prev = result.q.copy()
         self._q_prev2 = result.q.copy()
         return result
@@ -376,12 +364,12 @@ class Retargeter:
         q0 = self.config.init_pose if q_start is None else q_start
         prev = check_array("q_start", q0, (j,)).copy()
         for t in range(total):  # validate everything before solving anything
-            self._write_frame(self._online, 0, targets.frame(t))
-        s = self._offline_solver()
+            self._write_frame(self._online, self._online_params, 0, targets.frame(t))
+        s, params = self._offline_solver()
         step = self.max_velocity * dt
-        ng = self.problem.num_constraints_per_frame
-        s.lbg[w * ng :] = np.tile(-step, w - 1)
-        s.ubg[w * ng :] = np.tile(step, w - 1)
+        velocity_rows = slice(self.problem.constraint_layout.size(w), None)
+        s.lbg[velocity_rows] = np.tile(-step, w - 1)
+        s.ubg[velocity_rows] = np.tile(step, w - 1)
         t_seed = time.perf_counter()
         seed, seed_status = self._online_pass(targets, dt, prev)
         seed_time = time.perf_counter() - t_seed
@@ -400,8 +388,8 @@ class Retargeter:
             while start < total:
                 n_real = min(w, total - start)
                 for t in range(w):  # pad a short last window by repeating its last frame
-                    self._write_frame(s, t, targets.frame(start + min(t, n_real - 1)))
-                self._write_history(s, w, dt)
+                    self._write_frame(s, params, t, targets.frame(start + min(t, n_real - 1)))
+                params.write_history(self._q_prev, self._q_prev2, dt)
                 for t in range(w):
                     lo, hi = velocity_box(self._q_prev, self.lower, self.upper, step * (t + 1))
                     s.lbx[t * j : (t + 1) * j] = lo
@@ -461,8 +449,8 @@ class Retargeter:
         )
         return result, ClipTiming(seed_time, tuple(times), tuple(committed))
 
-    def _offline_solver(self) -> BufferedSolver:
-        if self._offline is None:
+    def _offline_solver(self) -> tuple[BufferedSolver, ParameterWriter]:
+        if self._offline is None or self._offline_params is None:
             st = self.settings
             self._offline = self._build(
                 st.window,
@@ -473,8 +461,8 @@ class Retargeter:
                 tol_pr=1e-7,
                 tol_du=1e-4,
             )
-            self._init_static(self._offline, st.window)
-        return self._offline
+            self._offline_params = self._init_static(self._offline, st.window)
+        return self._offline, self._offline_params
 
     def _online_pass(
         self, targets: ClipTargets, dt: float, start: FloatArray

@@ -1,4 +1,4 @@
-"""The NLP building blocks: the one-row twist, the parameter layout, problem sizes."""
+"""The NLP building blocks: the one-row twist, problem sizes."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.optimize.formulation import FrameLayout, RobotProblem, twist_expr
+from robot_retarget.optimize.formulation import RobotProblem, twist_expr
+from robot_retarget.optimize.objective import retarget_objective
+from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.robot.config import RobotConfig
 
 vec3 = st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3).filter(
@@ -32,19 +34,17 @@ def test_twist_row_equals_swing_twist_angle(
     assert abs(got - want) < 1e-9
 
 
-def test_layout_slices_tile_the_frame_block() -> None:
-    lay = FrameLayout(num_bones=5, num_ee=3)
-    covered = np.zeros(lay.size, dtype=int)
-    for sl in (lay.dirs, lay.normals, lay.w_dir, lay.w_ori, lay.ee, lay.w_ee):
-        covered[sl] += 1
-    assert np.all(covered == 1)
-
-
 def test_problem_sizes(op3: RobotConfig) -> None:
     prob = RobotProblem(op3)
-    nlp = prob.build_nlp(3)
+    objective = retarget_objective(prob, RetargetSettings())
+    nlp = prob.build_nlp(3, objective)
     j = op3.num_joints
+    nb, ne = len(prob.bones), len(prob.ee_frames)
     assert nlp["x"].shape == (3 * j, 1)
-    assert nlp["p"].shape == (3 * prob.layout.size + prob.shared_param_size(), 1)
+    # Per frame: directions, normals (3 + 1 each per bone), end effectors (3 + 1); shared:
+    # history (2J + 1), velocity and acceleration weights, posture (J + 1).
+    assert objective.layout.frame_size == 8 * nb + 4 * ne
+    assert objective.layout.shared_size == 3 * j + 4
+    assert nlp["p"].shape == (objective.layout.size(3), 1)
     assert nlp["g"].shape == (3 * prob.num_constraints_per_frame + 2 * j, 1)
     assert prob.num_constraints_per_frame == len(prob.bones) + len(prob.feet)

@@ -171,7 +171,8 @@ def test_forearm_twisted_150_deg_comes_back_within_alpha(twist_retargeter: Retar
 
 
 def test_per_bone_twist_override(twist_arm_factory: TwistArmFactory) -> None:
-    cfg = twist_arm_factory({"twist_limit_deg.LeftForeArm": 30.0})
+    # A roll weight well above the init pull (1e-4), so the unbounded forearm reaches its roll.
+    cfg = twist_arm_factory({"twist_limit_deg.LeftForeArm": 30.0, "w_orientation": 0.1})
     r = Retargeter(cfg, jit=False)
     q = np.zeros(cfg.num_joints)
     q[cfg.joint_index("l_fore_roll")] = math.radians(90.0)

@@ -61,3 +61,38 @@ def test_invalid_values(values: dict[str, object], key: str) -> None:
     with pytest.raises(ConfigError) as err:
         RetargetSettings.from_mapping(values, bone_names=BONES)  # type: ignore[arg-type]
     assert err.value.key == key
+
+
+def test_per_bone_weights_and_foot_defaults() -> None:
+    bones = ("LeftArm", "LeftFoot", "RightFoot")
+    s = RetargetSettings.from_mapping(
+        {"w_direction": 2.0, "w_direction.LeftArm": 0.5, "w_orientation.LeftFoot": 0.0},
+        bone_names=bones,
+    )
+    assert s.direction_weight("LeftArm") == 0.5
+    assert s.direction_weight("LeftForeArm") == 2.0  # unmapped bones take the default
+    # A foot's direction is weighted 0.02 unless the robot says otherwise.
+    assert s.direction_weight("LeftFoot") == s.direction_weight("RightFoot") == 0.02
+    assert s.orientation_weight("LeftFoot") == 0.0
+    assert s.orientation_weight("LeftArm") == s.w_orientation
+    feet = RetargetSettings.from_mapping({"w_direction.LeftFoot": 1.0}, bone_names=bones)
+    assert feet.direction_weight("LeftFoot") == 1.0
+    assert feet.direction_weight("RightFoot") == 0.02
+
+
+@pytest.mark.parametrize(
+    "key", ["w_direction.Hips", "w_orientation.LeftArm.x", "w_keypoint.LeftArm", "direction_eps.X"]
+)
+def test_per_bone_keys_need_a_mapped_bone_and_a_per_bone_option(key: str) -> None:
+    with pytest.raises(ConfigError, match="unknown") as err:
+        RetargetSettings.from_mapping({key: 1.0}, bone_names=BONES)
+    assert err.value.key == f"retarget.{key}"
+    assert err.value.allowed is not None
+    assert "w_direction.LeftForeArm" in err.value.allowed
+
+
+def test_new_scalars_are_validated() -> None:
+    s = RetargetSettings.from_mapping({"direction_eps": 0.1, "w_keypoint": 20}, bone_names=BONES)
+    assert (s.direction_eps, s.w_keypoint) == (0.1, 20.0)
+    with pytest.raises(ConfigError):
+        RetargetSettings.from_mapping({"direction_eps": -0.1}, bone_names=BONES)

@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from robot_retarget.optimize.formulation import RobotProblem
+from robot_retarget.optimize.objective import retarget_objective
+from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.solver import (
     CACHE_ENV,
     BufferedSolver,
@@ -52,9 +54,11 @@ def test_buffered_solve_matches_plain_call(twist_arm: RobotConfig, qpsol: str) -
     buffered = BufferedSolver(solver, jit_used)
     rng = np.random.default_rng(0)
     q = rng.uniform(twist_arm.lower, twist_arm.upper)
-    lay = prob.layout
-    buffered.p[lay.dirs] = np.asarray(prob.directions_function(q)).T.ravel()
-    buffered.p[lay.w_dir] = 1.0
+    lay = retarget_objective(prob, RetargetSettings()).layout
+    buffered.p[lay.frame(0, "bone_direction.target")] = np.asarray(
+        prob.directions_function(q)
+    ).T.ravel()
+    buffered.p[lay.frame(0, "bone_direction.weight")] = 1.0
     buffered.lbx[:] = twist_arm.lower
     buffered.ubx[:] = twist_arm.upper
     buffered.lbg[:] = -np.inf

@@ -6,28 +6,54 @@
   speed violations, jerk (numpy only);
 - :mod:`.references` — targets of the position-IK baseline and the segments of the kinematic
   limit (both solved in :mod:`robot_retarget.optimize`);
-- :mod:`.runner` — converts clips with the full pipeline and scores pipeline, baseline, limit;
-- :mod:`.report` / :mod:`.plots` — markdown table, goal check, JSON, matplotlib figures.
+- :mod:`.gmr_style` (with :mod:`.box_qp`) — the GMR-style baseline: per-frame differential IK of
+  walked limb keypoints, foot orientations and a posture task, as GMR runs mink (numpy);
+- :mod:`.runner` — converts clips with the full pipeline and scores pipeline, GMR-style IK,
+  position-IK baseline and kinematic limit;
+- :mod:`.report` / :mod:`.plots` — markdown table, goal check (issue #11), JSON, figures.
 
-Measured on OP3, validation subjects 06, 08, 12 (23 clips, 959 evaluation frames at 10 fps;
-``python launch.py eval-robot --robot op3 --data ../shared/data/mocap``, ≈ 20–30 s on one core):
+Measured with the shipped model (``python launch.py eval-robot --robot ROBOT
+[--val-subjects …]``, 10 fps scoring; the tuning set is what the optimizer's defaults were
+chosen on, the never-tuned set was looked at only at the end). Direction error mean over the
+nine segments (in brackets: over the eight limb segments — GMR-style IK has no torso task, it
+needs a floating base); every method had 0 joint-limit and 0 joint-speed violations:
 
-===========================================  =========  =========  ==========  =========
-direction error (°) / end-effector / jerk     pipeline   + settle   baseline    limit
-===========================================  =========  =========  ==========  =========
-model ``copy`` (the default until a            18.50      —          12.70       9.22
-checkpoint ships): 0.273 / 1990 rad/s³                              0.163/3548  0.185
-``--model oracle`` (ideal network)             13.14      11.54 ¹    12.70       9.22
-===========================================  =========  =========  ==========  =========
+========  ===========  =============  =============  =============  =============
+robot     subjects     pipeline       GMR-style IK   position IK    limit
+========  ===========  =============  =============  =============  =============
+OP3       02 05 13 ¹   14.02 (14.02)  16.11 (16.38)  16.30 (16.59)  10.10 ( 9.62)
+OP3       06 08 12 ²   12.16 (13.04)  11.77 (12.60)  12.70 (13.64)   9.22 ( 9.73)
+OP3       03 07 10 14  13.42 (14.31)  16.16 (17.39)  17.69 (19.11)   8.10 ( 8.33)
+Poppy     02 05 13 ¹    4.91 ( 4.79)   5.90 ( 3.06)  10.94 ( 9.57)   0.45 ( 0.35)
+Poppy     06 08 12 ²    3.64 ( 3.61)   8.05 ( 4.39)  12.67 (12.26)   0.04 ( 0.02)
+Poppy     03 07 10 14   3.72 ( 3.58)   5.06 ( 1.94)  10.10 ( 9.26)   0.08 ( 0.03)
+========  ===========  =============  =============  =============  =============
 
-¹ ``--settle-s 1`` (baseline 11.00°, limit 9.33° on the same frames). Both pipelines and the
-baseline have 0 limit and 0 speed violations. With ideal targets the remaining gap to the limit
-(settled, first 600 frames per clip: 11.01 − 9.08 = 1.9°) splits into the servo speed limit and
-smoothing (≈ 1.0°: 10 × the speed and no smoothing give 9.97°), the roll / init terms (0.2°)
-and warm-started local minima of the arms (0.7°: a multi-start solve of the same squared-chord
-cost reaches 8.95° where the angle-optimal limit is 8.78°). With ``copy`` the network's targets
-dominate: CMU's rest thighs point 20° outwards, so copying joint rotations onto the robot's
-straight-legged skeleton turns OP3's thighs 20° inwards (crossed legs in the stick figures).
+End-effector error (limb lengths) / jerk (rad/s³):
+
+========  ===========  ============  ============  ============  ======
+robot     subjects     pipeline      GMR-style IK  position IK   limit
+========  ===========  ============  ============  ============  ======
+OP3       02 05 13 ¹   0.232 / 1299  0.258 / 2468  0.221 / 3340  0.216
+OP3       06 08 12 ²   0.216 / 1296  0.207 / 2617  0.163 / 3548  0.185
+OP3       03 07 10 14  0.241 / 1166  0.284 / 2038  0.270 / 2811  0.172
+Poppy     02 05 13 ¹   0.142 / 1152  0.190 /  740  0.174 / 1228  0.211
+Poppy     06 08 12 ²   0.138 / 1083  0.195 /  721  0.171 / 1453  0.211
+Poppy     03 07 10 14  0.126 /  997  0.173 /  664  0.168 / 1099  0.187
+========  ===========  ============  ============  ============  ======
+
+¹ tuning set; before issue #11's optimizer work: OP3 15.25° / .247 / 2260, Poppy 7.08° / .136 /
+1402. ² validation subjects (the default); before: OP3 11.87° / .206 / 2052, Poppy 5.12° /
+.109 / 1286. Never-tuned before: OP3 15.81° / .278 / 1739, Poppy 6.04° / .111 / 1136.
+
+What is left on OP3 is its arms: three joints (no upper-arm twist, an elbow that bends both ways)
+for two bone directions give several local optima, and a warm-started solve keeps the one it
+starts in. Solved per frame to convergence with ideal targets (``--model oracle``, 02/05/13),
+the optimum reached from the pipeline's pose scores 13.70°, the one reached from the limit's pose
+11.17° (limit 10.09°); the cost itself prefers the limit's branch in 60–66 % of frames, but the
+two lie > 0.6 rad apart, so moving there at the servos' speed costs more than it gains (see
+:mod:`robot_retarget.optimize.limb_branches`). The network's targets add ≈ 0.5–0.7° on OP3 and
+most of Poppy's gap (Poppy with ideal targets, 02/05/13: 3.26°).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.evaluation.robot.runner import METHODS, EvalRobotReport
+from robot_retarget.evaluation.robot.runner import METHOD_LABELS, METHODS, EvalRobotReport
 from robot_retarget.evaluation.robot.segments import KINDS, RobotBodyModel, body_axes, to_body
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
 
@@ -29,7 +29,7 @@ def segment_bars(report: EvalRobotReport, path: Path) -> Path:
     width = 0.8 / len(METHODS)
     for k, m in enumerate(METHODS):
         vals = [report.summary[m].segment_mean_deg[lab] for lab in labels]
-        ax.bar(x + (k - 1) * width, vals, width, label=m)
+        ax.bar(x + (k - 0.5 * (len(METHODS) - 1)) * width, vals, width, label=METHOD_LABELS[m])
     ax.set_xticks(x, [lab.replace("_", " ") for lab in labels])
     ax.set_ylabel("direction error (°)")
     ax.set_title(f"{report.robot}, model {report.model}: segment-direction error")

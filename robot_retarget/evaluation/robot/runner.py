@@ -5,11 +5,15 @@ Per clip (every ``.bvh`` of the validation subjects):
 1. **pipeline** — :func:`run_pipeline` (``robot_retarget.pipeline.convert.convert_motion``:
    network → optimizer targets → Retargeter.solve → SafetyLayer), frame by frame at the robot's
    control rate, from the init pose, exactly as ``convert`` / ``stream`` do;
-2. **baseline** — per-frame position IK (:mod:`robot_retarget.optimize.position_ik`) of elbows,
+2. **gmr** — the GMR-style baseline (:mod:`.gmr_style`): per-frame differential IK of knee,
+   ankle, elbow and wrist positions walked along the robot's own segment lengths, foot
+   orientations and a posture task, 3 iterations per frame within the joint limits and the
+   servos' speeds, at the same rate from the same init pose;
+3. **baseline** — per-frame position IK (:mod:`robot_retarget.optimize.position_ik`) of elbows,
    hands, knees and ankles to the human's keypoints scaled to the robot's limbs, within the
    joint limits and velocity box, at the same rate from the same init pose;
-3. **limit** — :mod:`robot_retarget.optimize.kinematic_limit` per evaluation frame, started
-   from the pipeline's and the baseline's poses among others, so it is never worse than either.
+4. **limit** — :mod:`robot_retarget.optimize.kinematic_limit` per evaluation frame, started
+   from the other three methods' poses among others, so it is never worse than any of them.
 
 Direction and end-effector errors are scored on evaluation frames: every ``stride``-th frame at
 the control rate, ``stride = round(rate / eval_fps)`` (default 10 fps: every 12th frame at
@@ -37,6 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.errors import SourceError
+from robot_retarget.evaluation.robot.gmr_style import GMRStyleIK
 from robot_retarget.evaluation.robot.metrics import (
     TrajectoryStats,
     end_effector_errors,
@@ -64,7 +69,13 @@ from robot_retarget.robot.config import RobotConfig
 FloatArray = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
-METHODS = ("pipeline", "baseline", "limit")
+METHODS = ("pipeline", "gmr", "baseline", "limit")
+METHOD_LABELS = {
+    "pipeline": "pipeline",
+    "gmr": "GMR-style IK",
+    "baseline": "position-IK baseline",
+    "limit": "kinematic limit",
+}
 _CACHE_VERSION = "1"
 
 
@@ -119,7 +130,7 @@ class ClipScores:
 class MethodSummary:
     """Aggregates over clips (angles in degrees, end-effector errors in limb lengths)."""
 
-    segment_mean_deg: Mapping[str, float]  # KINDS + "overall"
+    segment_mean_deg: Mapping[str, float]  # KINDS, "overall" and "limbs" (all but the torso)
     segment_p95_deg: float  # p95 of the per-frame mean angle
     ee_hands: float
     ee_feet: float
@@ -218,7 +229,8 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
 
 
 class RobotEvaluator:
-    """Scores clips for one robot: pipeline (given), baseline and kinematic limit (built here)."""
+    """Scores clips for one robot: pipeline (given), GMR-style IK, position-IK baseline and
+    kinematic limit (built here)."""
 
     def __init__(
         self,
@@ -232,6 +244,7 @@ class RobotEvaluator:
         self.body = RobotBodyModel(config)
         frames = self.body.frames
         self.baseline = PositionIK(config, baseline_points(frames))
+        self.gmr = GMRStyleIK(config, frames)
         self.limit = KinematicLimit(
             config,
             limit_segments(frames),
@@ -257,11 +270,15 @@ class RobotEvaluator:
         t0 = time.perf_counter()
         base = self.baseline.solve_clip(baseline_targets(self.config, pos), dt)
         base_ms = (time.perf_counter() - t0) * 1e3 / n
-        candidates = np.stack([q_pipe[idx], base.q[idx]], axis=1)
+        t0 = time.perf_counter()
+        gmr = self.gmr.solve_clip(self.gmr.targets(pos, human.global_quats()[:n]), dt)
+        gmr_ms = (time.perf_counter() - t0) * 1e3 / n
+        candidates = np.stack([q_pipe[idx], gmr.q[idx], base.q[idx]], axis=1)
         limit_q, limit_ms = self._limit(h, candidates)
-        qs = {"pipeline": q_pipe[idx], "baseline": base.q[idx], "limit": limit_q}
+        qs = {"pipeline": q_pipe[idx], "gmr": gmr.q[idx], "baseline": base.q[idx], "limit": limit_q}
         methods = {
             "pipeline": self._method(h, q_pipe, idx, rate, run.fallbacks, run.ms_per_frame),
+            "gmr": self._method(h, gmr.q, idx, rate, 0, gmr_ms),
             "baseline": self._method(h, base.q, idx, rate, base.fallbacks, base_ms),
             "limit": self._method(h, limit_q, None, rate, 0, limit_ms),
         }
@@ -322,6 +339,7 @@ def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
     w = np.array([c.duration_s for c in clips])
     w = w / w.sum()
     kind_idx = {k: [i for i, s in enumerate(SEGMENT_KIND) if s == k] for k in KINDS}
+    limbs = [i for i, s in enumerate(SEGMENT_KIND) if s != "torso"]
     out = {}
     for m in METHODS:
         per = [c.methods[m] for c in clips]
@@ -333,6 +351,9 @@ def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
         }
         seg["overall"] = float(
             np.degrees(sum(wi * p.angles.mean() for wi, p in zip(w, per, strict=True)))
+        )
+        seg["limbs"] = float(
+            np.degrees(sum(wi * p.angles[:, limbs].mean() for wi, p in zip(w, per, strict=True)))
         )
         pooled = np.concatenate([p.angles.mean(axis=1) for p in per])
         ee_h = float(sum(wi * p.ee[:, :2].mean() for wi, p in zip(w, per, strict=True)))
@@ -358,14 +379,27 @@ def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
     return out
 
 
-def validation_clips(data_dir: str | Path, subjects: Sequence[str]) -> list[tuple[str, Path]]:
-    """(subject/clip name, path) of every BVH clip of ``subjects`` under ``data_dir``."""
-    from robot_retarget.nn.dataset import find_clips, subject_of
+def validation_clips(
+    data_dir: str | Path, subjects: Sequence[str] | None = None
+) -> list[tuple[str, Path]]:
+    """(subject/clip name, path) of the BVH clips to score under ``data_dir``.
+
+    ``subjects`` None (or the training split's default validation subjects, which the CLI
+    passes when ``--val-subjects`` is not given): those subjects' clips when the folder holds
+    any, else **every** clip — a folder that is not the training data (other performers, your
+    own recordings) has no training split to respect. Subjects named otherwise must exist.
+    """
+    from robot_retarget.nn.dataset import DEFAULT_VALIDATION_SUBJECTS, find_clips, subject_of
 
     root = Path(data_dir)
-    keep = set(subjects)
+    default = subjects is None or tuple(subjects) == DEFAULT_VALIDATION_SUBJECTS
+    keep = set(DEFAULT_VALIDATION_SUBJECTS if subjects is None else subjects)
     clips = [(p.relative_to(root).as_posix(), p) for p in find_clips(root)]
     chosen = [(n, p) for n, p in clips if subject_of(p, root) in keep]
+    if not chosen and default:
+        log.info("no clips of the validation subjects %s under %s: scoring all %d clips",
+                 sorted(keep), root, len(clips))  # fmt: skip
+        return clips
     if not chosen:
         raise SourceError(
             f"no clips of subjects {sorted(keep)} under {root}; pass --val-subjects with "

@@ -38,10 +38,13 @@ def report(op3: RobotConfig) -> EvalRobotReport:
 def test_table_has_every_metric_and_method(report: EvalRobotReport) -> None:
     table = markdown_table(report)
     lines = table.splitlines()
-    assert lines[0] == "| metric | pipeline | position-IK baseline | kinematic limit |"
-    assert len(lines) == 2 + 5 + 11
-    assert all(line.count("|") == 5 for line in lines)
-    assert "| joint-speed violations | 0 | 0 | — |" in lines
+    assert lines[0] == (
+        "| metric | pipeline | GMR-style IK | position-IK baseline | kinematic limit |"
+    )
+    assert len(lines) == 2 + 5 + 12
+    assert all(line.count("|") == 6 for line in lines)
+    assert "| joint-speed violations | 0 | 0 | 0 | — |" in lines
+    assert any(line.startswith("| limb direction error, mean (°) |") for line in lines)
 
 
 def test_goal_check_follows_the_numbers(report: EvalRobotReport) -> None:
@@ -51,16 +54,24 @@ def test_goal_check_follows_the_numbers(report: EvalRobotReport) -> None:
     s = dict(report.summary)
     s["limit"] = dataclasses.replace(
         s["limit"], segment_mean_deg={**s["limit"].segment_mean_deg,
-                                      "overall": s["pipeline"].segment_mean_deg["overall"] - 1.0}
+                                      "overall": s["pipeline"].segment_mean_deg["overall"] - 1.9}
     )  # fmt: skip
     close = dataclasses.replace(report, summary=s)
     assert next(ok for g, ok, _ in goal_check(close) if "kinematic limit" in g)
     s["limit"] = dataclasses.replace(
         s["limit"], segment_mean_deg={**s["limit"].segment_mean_deg,
-                                      "overall": s["pipeline"].segment_mean_deg["overall"] - 2.0}
+                                      "overall": s["pipeline"].segment_mean_deg["overall"] - 2.1}
     )  # fmt: skip
     far = dataclasses.replace(report, summary=s)
     assert not next(ok for g, ok, _ in goal_check(far) if "kinematic limit" in g)
+    # Against GMR-style IK: the limbs' mean, at least 3° lower.
+    limbs = s["pipeline"].segment_mean_deg["limbs"]
+    for delta, met in ((3.1, True), (2.9, False)):
+        s["gmr"] = dataclasses.replace(
+            s["gmr"], segment_mean_deg={**s["gmr"].segment_mean_deg, "limbs": limbs + delta}
+        )
+        check = goal_check(dataclasses.replace(report, summary=s))
+        assert next(ok for g, ok, _ in check if "GMR-style" in g) is met
 
 
 def test_report_and_json(report: EvalRobotReport) -> None:
@@ -69,7 +80,8 @@ def test_report_and_json(report: EvalRobotReport) -> None:
     assert "every 25th frame" in text
     assert "Goal (pipeline)" in text
     data = json.loads(json.dumps(report_dict(report)))
-    assert set(data["summary"]) == {"pipeline", "baseline", "limit"}
+    assert set(data["summary"]) == {"pipeline", "gmr", "baseline", "limit"}
+    assert "limbs" in data["summary"]["gmr"]["segment_mean_deg"]
     assert data["clips"][0]["clip"] == "demo"
     assert data["summary"]["limit"]["jerk_rad_s3"] is None
 

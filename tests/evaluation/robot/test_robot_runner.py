@@ -33,10 +33,10 @@ def demo_report(op3: RobotConfig) -> EvalRobotReport:
     return EvalRobotReport("op3", "copy", (clip,), summarize([clip]), 125.0, 5, 38, 0.0)
 
 
-def test_limit_is_never_worse_than_pipeline_or_baseline(demo_report: EvalRobotReport) -> None:
+def test_limit_is_never_worse_than_any_method(demo_report: EvalRobotReport) -> None:
     clip = demo_report.clips[0]
     limit = clip.methods["limit"].angles.mean(axis=1)
-    for other in ("pipeline", "baseline"):
+    for other in ("pipeline", "gmr", "baseline"):
         assert np.all(limit <= clip.methods[other].angles.mean(axis=1) + 1e-9)
 
 
@@ -47,7 +47,7 @@ def test_every_method_is_scored(demo_report: EvalRobotReport) -> None:
         assert clip.methods[m].angles.shape == (38, 9)
         assert clip.methods[m].ee.shape == (38, 4)
         assert clip.robot_q[m].shape == (38, 20)
-    for m in ("pipeline", "baseline"):
+    for m in ("pipeline", "gmr", "baseline"):
         s = demo_report.summary[m]
         assert s.limit_violations == 0
         assert s.speed_violations == 0
@@ -96,6 +96,22 @@ def test_validation_clips_filter_subjects(tmp_path: Path) -> None:
     assert [n for n, _ in validation_clips(tmp_path, ["06"])] == ["06/06_01.bvh", "06/06_02.bvh"]
     with pytest.raises(SourceError):
         validation_clips(tmp_path, ["99"])
+
+
+def test_a_folder_without_the_validation_subjects_is_scored_whole(tmp_path: Path) -> None:
+    # Not the training data (no clip of the split's validation subjects 06, 08, 12): the
+    # default scores every clip in it, whatever its subjects are called.
+    for name in ("dance.bvh", "walk_01.bvh", "studio/jump.bvh"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("")
+    everything = ["dance.bvh", "studio/jump.bvh", "walk_01.bvh"]
+    assert [n for n, _ in validation_clips(tmp_path)] == everything
+    assert [n for n, _ in validation_clips(tmp_path, ["06", "08", "12"])] == everything
+    with pytest.raises(SourceError):  # subjects asked for by name must exist
+        validation_clips(tmp_path, ["06"])
+    (tmp_path / "06").mkdir()
+    (tmp_path / "06" / "06_01.bvh").write_text("")
+    assert [n for n, _ in validation_clips(tmp_path)] == ["06/06_01.bvh"]
 
 
 def test_real_clip_first_frames(op3: RobotConfig, shared_data_dir: Path, tmp_path: Path) -> None:
