@@ -235,7 +235,7 @@ def test_result_reports_solver_facts(op3_retargeter: Retargeter) -> None:
     assert res.ok
     assert not res.used_fallback
     assert res.iterations >= 1
-    assert 0.0 < res.solve_time_s < 1.0
+    assert res.solve_time_s > 0.0  # measured (speed itself: bench solve)
     assert res.max_violation <= 1e-6
     assert res.cost >= 0.0
     assert res.q.shape == (r.num_joints,)
