@@ -35,6 +35,7 @@ import numpy.typing as npt
 
 from robot_retarget.errors import SolveError
 from robot_retarget.evaluation.robot.box_qp import box_qp
+from robot_retarget.evaluation.robot.references import CANONICAL_UP, LIMBS
 from robot_retarget.evaluation.robot.segments import RobotSegmentFrames, body_axes
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.optimize.bone_model import (
@@ -50,15 +51,6 @@ from robot_retarget.skeleton.canonical import Joint
 
 FloatArray = npt.NDArray[np.float64]
 
-_CANONICAL_UP = np.array([0.0, 1.0, 0.0])
-# Limbs: (root, middle, end) canonical joints and the indices of their two segments in
-# RobotSegmentFrames order (upper arm L/R 0/1, forearm 2/3, thigh 4/5, shin 6/7).
-_LIMBS: tuple[tuple[str, str, str, int, int], ...] = (
-    ("LeftArm", "LeftForeArm", "LeftHand", 0, 2),
-    ("RightArm", "RightForeArm", "RightHand", 1, 3),
-    ("LeftUpLeg", "LeftLeg", "LeftFoot", 4, 6),
-    ("RightUpLeg", "RightLeg", "RightFoot", 5, 7),
-)
 _FEET = ("LeftFoot", "RightFoot")  # canonical foot joints (start of the foot bones)
 _SETTLE_TOL_RAD = 1e-7
 _SETTLE_MAX_ITER = 200
@@ -118,9 +110,9 @@ class GMRStyleIK:
         p0 = self.kin.frame_positions(zero, [*frames.starts, *frames.ends])
         self._length = np.linalg.norm(p0[8:] - p0[:8], axis=-1)  # (8,) robot segment lengths
         # Position tasks: per limb the middle and end point (elbow, wrist; knee, ankle).
-        self.points = tuple(f for *_, a, b in _LIMBS for f in (frames.ends[a], frames.ends[b]))
+        self.points = tuple(f for *_, a, b in LIMBS for f in (frames.ends[a], frames.ends[b]))
         # Each point is placed relative to its limb's root (the first segment's start).
-        self.anchors = tuple(frames.starts[a] for *_, a, _ in _LIMBS for _ in range(2))
+        self.anchors = tuple(frames.starts[a] for *_, a, _ in LIMBS for _ in range(2))
         # Orientation tasks: the link carrying each mapped foot bone, and its alignment C
         # (G_robot = R_link · C, as in the optimizer's bone model).
         carrier_of = {b.end_frame: _carrier(config, b.end_frame) for b in config.bones}
@@ -164,10 +156,10 @@ class GMRStyleIK:
         if pos.ndim != 3 or glob.shape[:2] != pos.shape[:2]:
             raise SolveError(f"positions (T, 22, 3) and rotations (T, 22, 4) must match: "
                              f"{pos.shape}, {glob.shape}")  # fmt: skip
-        axes = body_axes(pos[:, Joint.LeftUpLeg], pos[:, Joint.RightUpLeg], _CANONICAL_UP)
+        axes = body_axes(pos[:, Joint.LeftUpLeg], pos[:, Joint.RightUpLeg], CANONICAL_UP)
         m = np.einsum("ij,tjk->tik", self._to_root, axes)  # world → root frame, per frame
         out = []
-        for root, mid, end, a, b in _LIMBS:
+        for root, mid, end, a, b in LIMBS:
             r, j, e = pos[:, Joint[root]], pos[:, Joint[mid]], pos[:, Joint[end]]
             du = np.einsum("tij,tj->ti", m, j - r)
             dl = np.einsum("tij,tj->ti", m, e - j)

@@ -27,10 +27,10 @@ from robot_retarget.skeleton.canonical import Joint
 
 FloatArray = npt.NDArray[np.float64]
 
-_CANONICAL_UP = np.array([0.0, 1.0, 0.0])
+CANONICAL_UP = np.array([0.0, 1.0, 0.0])
 # (limb root, middle, end) canonical joints, and the robot bones' indices in SEGMENTS order:
 # (upper-arm / thigh index, forearm / shin index).
-_LIMBS: tuple[tuple[str, str, str, int, int], ...] = (
+LIMBS: tuple[tuple[str, str, str, int, int], ...] = (
     ("LeftArm", "LeftForeArm", "LeftHand", 0, 2),
     ("RightArm", "RightForeArm", "RightHand", 1, 3),
     ("LeftUpLeg", "LeftLeg", "LeftFoot", 4, 6),
@@ -40,7 +40,7 @@ _LIMBS: tuple[tuple[str, str, str, int, int], ...] = (
 
 def baseline_points(frames: RobotSegmentFrames) -> tuple[str, ...]:
     """Robot frames the baseline drives: elbows, hands, knees, ankles (the bones' ends)."""
-    return tuple(f for _, _, _, a, b in _LIMBS for f in (frames.ends[a], frames.ends[b]))
+    return tuple(f for _, _, _, a, b in LIMBS for f in (frames.ends[a], frames.ends[b]))
 
 
 def baseline_targets(config: RobotConfig, positions: npt.ArrayLike) -> FloatArray:
@@ -52,10 +52,10 @@ def baseline_targets(config: RobotConfig, positions: npt.ArrayLike) -> FloatArra
     zero = np.zeros(config.num_joints)
     p0 = kin.frame_positions(zero, [*frames.starts, *frames.ends])
     robot_len = np.linalg.norm(p0[8:] - p0[:8], axis=-1)
-    axes = body_axes(pos[:, Joint.LeftUpLeg], pos[:, Joint.RightUpLeg], _CANONICAL_UP)
+    axes = body_axes(pos[:, Joint.LeftUpLeg], pos[:, Joint.RightUpLeg], CANONICAL_UP)
     to_root = body_to_root(config)  # columns: forward, left, up in the root frame
     out = []
-    for root, mid, end, a, b in _LIMBS:
+    for root, mid, end, a, b in LIMBS:
         r, m, e = pos[:, Joint[root]], pos[:, Joint[mid]], pos[:, Joint[end]]
         human_len = np.linalg.norm(m - r, axis=-1) + np.linalg.norm(e - m, axis=-1)
         scale = (robot_len[a] + robot_len[b]) / np.maximum(human_len, 1e-9)
