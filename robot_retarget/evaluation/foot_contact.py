@@ -12,10 +12,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.skeleton.canonical import Joint
-
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
 
 FOOT_JOINTS: tuple[int, ...] = (
     Joint.LeftFoot,

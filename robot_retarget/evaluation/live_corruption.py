@@ -20,12 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.motion.human_motion import HumanMotion, skeleton_height
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
-
-FloatArray = npt.NDArray[np.float64]
 
 KINDS: tuple[str, ...] = (
     "jitter",

@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from robot_retarget.evaluation.live_corruption import CorruptedStream
 from robot_retarget.evaluation.robot.metrics import segment_angles
@@ -26,8 +25,6 @@ from robot_retarget.sim.backend import SimBackend
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources.base import MotionSource, SourceFrame, SourceStats
 from robot_retarget.sources.from_positions import PositionsToRotations
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class _SimClock:

@@ -23,12 +23,11 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.evaluation.skeleton_measures import arm_length, leg_length
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton
-
-FloatArray = npt.NDArray[np.float64]
 
 TWIST_ALPHA_RAD = math.radians(100.0)
 _MIN_BONE_M = 1e-6

@@ -19,9 +19,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import quaternion as quat
-
-FloatArray = npt.NDArray[np.float64]
 
 NOISE_SIGMA_FRAC = 0.01
 ZERO_PROB = 0.02

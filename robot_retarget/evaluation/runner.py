@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.evaluation import metrics
 from robot_retarget.evaluation.foot_contact import foot_contacts, foot_skate
 from robot_retarget.evaluation.noise import NOISE_SIGMA_FRAC, ZERO_PROB, corrupt
@@ -37,8 +37,6 @@ from robot_retarget.nn.dataset import Clip
 from robot_retarget.nn.inference import LoadedModel, retarget_clip
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
-
-FloatArray = npt.NDArray[np.float64]
 
 # (key, column header, lower is better) in table order.
 METRICS: tuple[tuple[str, str], ...] = (

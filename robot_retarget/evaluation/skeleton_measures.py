@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
 from robot_retarget.motion.human_motion import skeleton_height
 from robot_retarget.skeleton.canonical import Joint
 from robot_retarget.skeleton.skeleton import Skeleton
-
-FloatArray = npt.NDArray[np.float64]
 
 _SIDES = ("Left", "Right")
 

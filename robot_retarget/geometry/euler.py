@@ -12,9 +12,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import quaternion as quat
-
-FloatArray = npt.NDArray[np.float64]
 
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 _GIMBAL_TOL = 1e-7

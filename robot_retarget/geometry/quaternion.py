@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from robot_retarget.array_types import FloatArray
 
 _EPS = 1e-12
 # Below this |a × b| (with a · b < 0) the shortest-arc axis is rounding noise: see from_two_vectors.

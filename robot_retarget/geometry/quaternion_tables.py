@@ -12,11 +12,9 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import quaternion as quat
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @lru_cache(maxsize=1)

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.errors import CommunicationError, HardwareError, ServoFaultError
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.backend import JointBackend
@@ -48,7 +49,7 @@ from robot_retarget.hardware.servo_registers import (
     check_servo,
     fix_servo,
 )
-from robot_retarget.hardware.types import FloatArray, IntArray, JointCommand, JointState
+from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_models import servo_model
 from robot_retarget.robot.servo_units import ServoUnits

@@ -13,9 +13,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import HardwareError
 from robot_retarget.hardware.backend import JointBackend
-from robot_retarget.hardware.types import FloatArray, JointCommand, JointState
+from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
 
 

@@ -5,10 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
+from robot_retarget.array_types import FloatArray, IntArray
 
 
 def _float_vector(name: str, value: object) -> FloatArray:

@@ -27,8 +27,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError
 from robot_retarget.geometry import euler
 from robot_retarget.geometry import quaternion as quat
@@ -37,7 +37,6 @@ from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 if TYPE_CHECKING:
     from robot_retarget.motion.human_motion import HumanMotion
 
-FloatArray = npt.NDArray[np.float64]
 
 POSITION_CHANNELS: tuple[str, ...] = ("Xposition", "Yposition", "Zposition")
 ROTATION_CHANNELS: tuple[str, ...] = ("Xrotation", "Yrotation", "Zrotation")

@@ -17,8 +17,8 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.auto_map import TreeGeometry
@@ -30,8 +30,6 @@ from robot_retarget.motion.units import detect_unit, unit_scale_m
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
 from robot_retarget.skeleton.rest_pose import align_to_tpose
 from robot_retarget.skeleton.skeleton import Skeleton, local_from_global
-
-FloatArray = npt.NDArray[np.float64]
 
 UP_AXES: dict[str, tuple[float, float, float]] = {
     "x": (1.0, 0.0, 0.0),

@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError
 from robot_retarget.geometry import euler
 from robot_retarget.geometry import quaternion as quat
@@ -29,8 +29,6 @@ from robot_retarget.motion.bvh import (
 from robot_retarget.motion.units import unit_scale_m
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
-
-FloatArray = npt.NDArray[np.float64]
 
 CANONICAL_FAMILY = "canonical"
 _UNIT_TOL = 1e-6

@@ -20,14 +20,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
 from robot_retarget.errors import JointMappingError
 from robot_retarget.motion import name_families as nf
 from robot_retarget.motion.auto_map import TreeGeometry, auto_map
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, REQUIRED_JOINTS
-
-FloatArray = npt.NDArray[np.float64]
 
 FAMILIES: tuple[str, ...] = (*nf.FAMILY_TABLES, nf.AUTOMATIC)
 

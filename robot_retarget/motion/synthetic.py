@@ -12,14 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton
-
-FloatArray = npt.NDArray[np.float64]
 
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 

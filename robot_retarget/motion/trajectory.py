@@ -29,9 +29,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError
-
-FloatArray = npt.NDArray[np.float64]
 
 ROOT_POS_COLUMNS: tuple[str, ...] = ("root_x", "root_y", "root_z")
 ROOT_QUAT_COLUMNS: tuple[str, ...] = ("root_qw", "root_qx", "root_qy", "root_qz")

@@ -17,9 +17,9 @@ import time
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 import torch
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.bench_stats import TimingStats
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.geometry import quaternion as quat
@@ -36,7 +36,6 @@ from robot_retarget.skeleton.canonical import default_canonical_skeleton
 
 HELP = "Retargeting model time per frame, online and per clip (median, p99)."
 
-FloatArray = npt.NDArray[np.float64]
 
 _DEFAULT_MODELS = ("copy", "nkn", "pmnet", "residual")
 

@@ -34,9 +34,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 import torch
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError, RetargetError
 from robot_retarget.motion import HumanMotion, load_motion
 from robot_retarget.nn.features import MotionFeatures, compute_features
@@ -48,8 +48,6 @@ from robot_retarget.skeleton.canonical import (
     Joint,
 )
 from robot_retarget.skeleton.skeleton import Skeleton
-
-FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_FPS = 30.0
 DEFAULT_WINDOW_FRAMES = 60

@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 import torch
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.motion import HumanMotion
 from robot_retarget.nn.checkpoint import load_checkpoint
@@ -28,8 +29,6 @@ from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 from robot_retarget.skeleton.skeleton import Skeleton
-
-FloatArray = npt.NDArray[np.float64]
 
 CHECKPOINT_DIR = Path(__file__).resolve().parents[1] / "data" / "checkpoints"
 BUILTIN_MODELS: tuple[str, ...] = ("copy", "copy-scaled")

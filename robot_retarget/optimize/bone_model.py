@@ -22,9 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ConfigError
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.robot.config import FloatArray, RobotConfig
+from robot_retarget.robot.config import RobotConfig
 from robot_retarget.skeleton.canonical import (
     CANONICAL_JOINTS,
     CANONICAL_PARENTS,

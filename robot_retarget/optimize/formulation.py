@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize.bone_model import (
     BoneGeometry,
     alignment,
@@ -40,7 +41,7 @@ from robot_retarget.optimize.bone_model import (
 )
 from robot_retarget.optimize.parameter_layout import Parameter, ParameterLayout
 from robot_retarget.optimize.symbolic_kinematics import SymbolicKinematics
-from robot_retarget.robot.config import FloatArray, RobotConfig
+from robot_retarget.robot.config import RobotConfig
 
 if TYPE_CHECKING:  # the objective's terms build on this module
     from robot_retarget.optimize.objective import Objective

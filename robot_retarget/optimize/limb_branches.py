@@ -34,13 +34,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.optimize.objective import ParameterWriter
 from robot_retarget.optimize.solver import BufferedSolver
-from robot_retarget.robot.config import FloatArray
-
-IntArray = npt.NDArray[np.int64]
 
 _CONSTRAINT_TOL = 1e-6
 # The solves' time step (s): smoothing terms (∝ 1/dt², 1/dt⁴) vanish, as in Retargeter.settle.

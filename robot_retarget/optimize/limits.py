@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robot_retarget.robot.config import FloatArray
+from robot_retarget.array_types import FloatArray
 
 
 def velocity_box(

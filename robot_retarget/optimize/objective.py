@@ -16,6 +16,7 @@ from collections.abc import Sequence
 import casadi as ca
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize.formulation import FrameQuantities, RobotProblem
 from robot_retarget.optimize.parameter_layout import Parameter, ParameterLayout
 from robot_retarget.optimize.settings import RetargetSettings
@@ -31,7 +32,6 @@ from robot_retarget.optimize.terms import (
     VelocityTerm,
 )
 from robot_retarget.optimize.terms.keypoint import KeypointTerm, keypoint_chains
-from robot_retarget.robot.config import FloatArray
 
 _Q_PREV = "history.q_prev"
 _Q_PREV2 = "history.q_prev2"

@@ -23,11 +23,12 @@ import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import SolveError
 from robot_retarget.optimize.limits import velocity_box
 from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver
 from robot_retarget.optimize.symbolic_kinematics import SymbolicKinematics
-from robot_retarget.robot.config import FloatArray, RobotConfig
+from robot_retarget.robot.config import RobotConfig
 
 _MAX_ITER = 20
 

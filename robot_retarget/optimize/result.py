@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
-from robot_retarget.robot.config import FloatArray
+from robot_retarget.array_types import FloatArray
 
 
 class SolveStatus(str, Enum):

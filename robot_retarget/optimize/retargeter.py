@@ -26,6 +26,7 @@ import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import SolveError
 from robot_retarget.optimize.chains import coupled_groups
 from robot_retarget.optimize.formulation import FOOT_ROWS, TWIST_ROWS, RobotProblem
@@ -36,7 +37,7 @@ from robot_retarget.optimize.result import SolveResult, SolveStatus
 from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver
 from robot_retarget.optimize.targets import ClipTargets, FrameTargets, check_array
-from robot_retarget.robot.config import FloatArray, RobotConfig
+from robot_retarget.robot.config import RobotConfig
 
 _CONSTRAINT_TOL = 1e-6  # twist (rad) / ground (m) violation still called "satisfied"
 _NO_GROUND = 1e9  # lower bound for foot heights when the root height is unknown (m)

@@ -35,7 +35,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from robot_retarget.robot.config import FloatArray
+from robot_retarget.array_types import FloatArray
 
 log = logging.getLogger(__name__)
 

@@ -11,8 +11,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ConfigError
-from robot_retarget.robot.config import FloatArray, RobotConfig, Vec3
+from robot_retarget.robot.config import RobotConfig, Vec3
 
 Pose = tuple[ca.SX, ca.SX]  # (rotation 3×3, position 3×1) in the root frame
 

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import SolveError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.geometry.quaternion_tables import product_table, rotation_table
 from robot_retarget.optimize.formulation import RobotProblem
-from robot_retarget.robot.config import FloatArray
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 from robot_retarget.skeleton.tree_tables import pointer_jumps

@@ -30,8 +30,6 @@ from robot_retarget.pipeline.recorder import RecordingBackend
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 
-FloatArray = npt.NDArray[np.float64]
-
 _LIMIT_TOL_RAD = 1e-9
 # Command stamps 1 ppb apart more than dt: the safety layer then bounds each step by exactly
 # v_max · dt (its min(Δt, period)), the optimizer's bound, instead of a rounded-down Δt that

@@ -11,9 +11,11 @@ for the robot's own proportions, with its feet on the ground:
   ratio (robot / performer: a 0.5 m robot takes proportionally shorter steps), plus a
   correction that pins a foot in stance where it landed (below);
 - **height**: for each frame, the base height that puts the robot's lowest foot point (its
-  config's foot frames, e.g. OP3's soles) at the performer's lowest foot height above their
+  config's foot frames, e.g. OP3's soles and toes) at the performer's foot height above their
   ground, scaled: z = 0 in stance; in a jump the robot leaves the ground as the performer did;
-  no foot point ever goes below z = 0.
+  no foot point ever goes below z = 0. The performer's foot height is that of whichever foot
+  joint (ankle or toe) is nearest its own standing height: a heel strike (ankle down, toe up)
+  and a toe-off (toe down, ankle up) both count as on the ground, as neither joint touches it.
 - **foot pinning**: a foot on the ground (within ``contact_m`` of z = 0) in two consecutive
   frames must not slide: the base moves by the mean slip of such feet. Scaled human strides and
   the robot's own leg kinematics never match exactly; this keeps a foot in stance planted, at
@@ -31,6 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
+from robot_retarget.errors import ConfigError, RetargetError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.optimize.bone_model import foot_frames
@@ -43,19 +47,27 @@ from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.canonical import Joint
 from robot_retarget.skeleton.skeleton import Skeleton
 
-FloatArray = npt.NDArray[np.float64]
-
 # Canonical human axes (X left, Y up, Z forward) → world (x forward, y left, z up).
 HUMAN_TO_WORLD = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 CONTACT_M = 0.01  # a foot point this close to the ground counts as standing on it
+# Ankles, then toes, left before right: a joint's standing height is pooled over both sides.
 _FOOT_JOINTS = (Joint.LeftFoot, Joint.RightFoot, Joint.LeftToeBase, Joint.RightToeBase)
-HUMAN_CONTACT_M = 0.05  # the performer's foot this close to their ground may be in stance…
+HUMAN_CONTACT_M = 0.05  # a performer's foot joint this near its standing height may be planted…
 HUMAN_CONTACT_SPEED_M_S = 0.6  # …when it also moves slower than this (horizontal)
-_SIDE_JOINTS = {
-    "Left": (Joint.LeftFoot, Joint.LeftToeBase),
-    "Right": (Joint.RightFoot, Joint.RightToeBase),
-}
-_GROUND_PERCENTILE = 2.0  # the performer's ground: a low percentile of their lowest foot point
+_SIDE_COLUMNS = {"Left": (0, 2), "Right": (1, 3)}  # columns of _FOOT_JOINTS per side
+# A joint's standing height: a low percentile of its height over the clip (robust to glitches,
+# and to a clip spent on one leg: both sides are pooled).
+_GROUND_PERCENTILE = 2.0
+
+
+class FloatingBaseError(RetargetError, ValueError):
+    """Joint angles and the motion they were retargeted from do not fit together; ``expected``
+    and ``got`` are the shapes."""
+
+    def __init__(self, message: str, *, expected: tuple[int, ...], got: tuple[int, ...]) -> None:
+        self.expected = expected
+        self.got = got
+        super().__init__(message)
 
 
 @dataclass(frozen=True)
@@ -74,7 +86,12 @@ def foot_points(config: RobotConfig) -> tuple[str, ...]:
     mapped feet (OP3: sole centre and toe of each ankle-roll link)."""
     ends = foot_frames(config)
     if not ends:
-        raise ValueError(f"robot {config.name} maps no foot frames: no ground contact to keep")
+        raise ConfigError(
+            f"robot {config.name} maps no foot bones, so it has no point to stand on",
+            path=config.source_path,
+            key="bones",
+            allowed="bones ending at LeftToeBase/RightToeBase or LeftFoot/RightFoot",
+        )
     parents = {f.name: f.parent_link for f in config.frames}
     links = {parents.get(e) for e in ends}
     return tuple(f.name for f in config.frames if f.parent_link in links) or ends
@@ -99,7 +116,12 @@ def floating_base(
     q_arr = np.asarray(q, dtype=np.float64)
     n = motion.num_frames
     if q_arr.shape != (n, config.num_joints):
-        raise ValueError(f"q must be ({n}, {config.num_joints}), got {q_arr.shape}")
+        raise FloatingBaseError(
+            f"q must be ({n}, {config.num_joints}) (one row per motion frame, robot joint "
+            f"order), got {q_arr.shape}; resample the motion to the trajectory's rate first",
+            expected=(n, config.num_joints),
+            got=q_arr.shape,
+        )
     feet = foot_points(config)
     ratio = leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(motion.skeleton)
 
@@ -108,11 +130,10 @@ def floating_base(
     hips = quat.to_matrix(motion.local_quats[:, 0])  # (T, 3, 3) canonical
     base_rot = HUMAN_TO_WORLD @ hips @ c  # (T, 3, 3)
 
-    # Height targets: the performer's lowest foot point above their ground, scaled.
+    # Height targets: the performer's foot height above their ground, scaled.
     human = motion.positions()
-    foot_y = human[:, list(_FOOT_JOINTS), 1].min(axis=1)
-    ground = float(np.percentile(foot_y, _GROUND_PERCENTILE))
-    lowest = ratio * np.maximum(foot_y - ground, 0.0)
+    heights = human_foot_heights_m(human)  # (T, 4)
+    lowest = ratio * heights.min(axis=1)
     track = (human[:, 0] - human[:1, 0]) @ HUMAN_TO_WORLD.T * ratio  # (T, 3) world
 
     local_feet = RobotKinematics(config).frame_positions(q_arr, list(feet))  # (T, F, 3) root
@@ -120,7 +141,7 @@ def floating_base(
     z = lowest - rel[:, :, 2].min(axis=1)
     pos = np.column_stack([track[:, 0], track[:, 1], z])
     if pin_feet:
-        planted = _human_planted(human, ground, motion.fps, _frame_sides(config, feet))
+        planted = _human_planted(human, heights, motion.fps, _frame_sides(config, feet))
         _pin_stance_feet(pos, rel, planted, contact_m)
     world_feet = rel + pos[:, None, :]
     root_quat = quat.make_continuous(quat.from_matrix(base_rot), axis=0)
@@ -134,19 +155,31 @@ def _frame_sides(config: RobotConfig, frames: tuple[str, ...]) -> list[str]:
     return ["Left" if side.get(link.get(f), "").startswith("Left") else "Right" for f in frames]
 
 
+def human_foot_heights_m(positions: npt.ArrayLike) -> FloatArray:
+    """(T, 4) height of each of the performer's foot joints (ankles, then toes; left, right)
+    above its own standing height, ≥ 0, from global joint positions (T, 22, 3) Y up, metres.
+
+    Each joint is measured from its own standing height (ankles stand higher than toes): the
+    foot is on the ground when either is there, whichever part of the sole carries it."""
+    y = np.asarray(positions, dtype=np.float64)[:, list(_FOOT_JOINTS), 1]
+    ankle = float(np.percentile(y[:, :2], _GROUND_PERCENTILE))
+    toe = float(np.percentile(y[:, 2:], _GROUND_PERCENTILE))
+    return np.maximum(y - np.array([ankle, ankle, toe, toe]), 0.0)
+
+
 def _human_planted(
-    human: FloatArray, ground: float, fps: float, sides: list[str]
+    human: FloatArray, heights: FloatArray, fps: float, sides: list[str]
 ) -> npt.NDArray[np.bool_]:
-    """(T, F): the performer's foot on each robot foot frame's side is planted (near their
-    ground and slow)."""
+    """(T, F): the performer's foot on each robot foot frame's side is planted: one of its
+    joints near its standing height and slow."""
+    horizontal = human[:, list(_FOOT_JOINTS)][:, :, [0, 2]]  # (T, 4, 2)
+    vel = np.gradient(horizontal, axis=0) * fps if len(human) > 1 else 0.0 * horizontal
+    joint_planted = (heights <= HUMAN_CONTACT_M) & (
+        np.linalg.norm(vel, axis=-1) <= HUMAN_CONTACT_SPEED_M_S
+    )
     out = np.zeros((len(human), len(sides)), dtype=bool)
     for k, side in enumerate(sides):
-        pts = human[:, list(_SIDE_JOINTS[side])]  # (T, 2, 3)
-        low = pts[:, :, 1].min(axis=1) - ground <= HUMAN_CONTACT_M
-        horizontal = pts[:, :, [0, 2]]
-        vel = np.gradient(horizontal, axis=0) * fps if len(pts) > 1 else 0.0 * horizontal
-        slow = np.linalg.norm(vel, axis=-1).min(axis=1) <= HUMAN_CONTACT_SPEED_M_S
-        out[:, k] = low & slow
+        out[:, k] = joint_planted[:, list(_SIDE_COLUMNS[side])].any(axis=1)
     return out
 
 

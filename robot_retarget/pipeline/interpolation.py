@@ -14,13 +14,9 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
-import numpy as np
-import numpy.typing as npt
-
+from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.sources.base import SourceFrame
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.safety import ClipStats, SafetyLayer
 from robot_retarget.hardware.types import JointCommand
@@ -40,8 +40,6 @@ from robot_retarget.pipeline.live_stats import LiveStats, StatsSnapshot
 from robot_retarget.pipeline.start_ramp import RampOutcome, RampSettings, StartRamp, toward
 from robot_retarget.pipeline.step import RetargetStep, StepStats
 from robot_retarget.sources.base import MotionSource
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class Mode(str, enum.Enum):

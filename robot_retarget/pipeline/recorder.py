@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import HardwareError
 from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class RecordingBackend(JointBackend):

@@ -8,10 +8,13 @@ rotation times its zero-pose rotation transposed, and rest offsets are zero-pose
 differences; this reproduces every link position exactly. The root moves with the
 trajectory's ``root_pos`` / ``root_quat`` when present: the base link's pose in the robot's
 Z-up, x-forward world (as convert writes it), turned into BVH axes (world x → BVH Z, y → X,
-z → Y). Euler angles are kept continuous from frame to frame (of the two ZYX triples of a
-rotation, and their 2π turns, the one nearest the previous frame's), so players that
-interpolate channels never spin a joint the long way round. Lengths in metres (Blender's BVH
-import scale 1.0 gives metres).
+z → Y). The root's rotation channels are Y X Z (heading first): a performer who turns
+(a pirouette) passes heading ±90° all the time, which in Z Y X order — heading in the middle —
+is gimbal lock, where a tiny tilt swings the other two angles by up to 180°; Y X Z locks only
+with the body horizontal. Links keep Z Y X. Euler angles are kept continuous from frame to
+frame (of the two triples of a rotation, and their 2π turns, the one nearest the previous
+frame's), so players that interpolate channels never spin a joint the long way round. Lengths
+in metres (Blender's BVH import scale 1.0 gives metres).
 """
 
 from __future__ import annotations
@@ -20,25 +23,29 @@ from pathlib import Path
 
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import euler
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.bvh import BvhClip, write_bvh
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.robot.canonical_skeleton import robot_to_canonical_rotation
-from robot_retarget.robot.config import FloatArray, RobotConfig
+from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 
-_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation")
-_JOINT_CHANNELS = ("Zrotation", "Yrotation", "Xrotation")
+_ROOT_ORDER = "YXZ"  # heading first: no gimbal lock while the performer turns
+_JOINT_ORDER = "ZYX"
+_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", *(f"{a}rotation" for a in _ROOT_ORDER))
+_JOINT_CHANNELS = tuple(f"{a}rotation" for a in _JOINT_ORDER)
 
 
 # The robot's world (x forward, y left, z up) in BVH axes (X left, Y up, Z forward).
 WORLD_TO_BVH = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 
 
-def continuous_zyx(angles_rad: FloatArray) -> FloatArray:
-    """ZYX Euler angles (T, …, 3) made continuous along T: per frame the equivalent triple
-    (a, b, c) or (a + π, π − b, c + π), shifted by whole turns, nearest the previous frame's."""
+def continuous_euler(angles_rad: FloatArray) -> FloatArray:
+    """Tait–Bryan Euler angles (T, …, 3) of any order (ZYX, YXZ, …) made continuous along T:
+    per frame the equivalent triple (a, b, c) or (a + π, π − b, c + π), shifted by whole turns,
+    nearest the previous frame's."""
     out = np.array(angles_rad, dtype=np.float64, copy=True)
     two_pi = 2.0 * np.pi
     for t in range(1, len(out)):
@@ -85,7 +92,11 @@ def robot_bvh_clip(config: RobotConfig, trajectory: RobotTrajectory) -> BvhClip:
     local = glob.copy()
     for k in range(1, n_links):
         local[:, k] = np.swapaxes(glob[:, parents[k]], -1, -2) @ glob[:, k]
-    angles = np.degrees(continuous_zyx(euler.to_euler(quat.from_matrix(local), "ZYX")))
+    local_q = quat.from_matrix(local)  # (T, L, 4)
+    angles = np.empty((trajectory.num_frames, n_links, 3))
+    angles[:, 0] = euler.to_euler(local_q[:, 0], _ROOT_ORDER)
+    angles[:, 1:] = euler.to_euler(local_q[:, 1:], _JOINT_ORDER)
+    angles = np.degrees(continuous_euler(angles))
     root_pos = (
         trajectory.root_pos @ WORLD_TO_BVH.T
         if trajectory.root_pos is not None

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from robot_retarget.array_types import FloatArray
 
 
 class RampOutcome(str, enum.Enum):

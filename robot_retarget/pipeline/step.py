@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize import Retargeter, SolveResult
 from robot_retarget.optimize.targets import FrameTargetBuilder
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
@@ -24,8 +25,6 @@ from robot_retarget.skeleton.skeleton import Skeleton
 
 if TYPE_CHECKING:
     from robot_retarget.nn.inference import LoadedModel
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -15,13 +15,13 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import RetargetError
 from robot_retarget.robot.canonical_skeleton import robot_to_canonical_rotation
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
 
-FloatArray = npt.NDArray[np.float64]
 FORMATS: tuple[str, ...] = (".gif", ".mp4")
 
 

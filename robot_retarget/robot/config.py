@@ -15,9 +15,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from robot_retarget.array_types import FloatArray
+
 Vec3 = tuple[float, float, float]
 
 

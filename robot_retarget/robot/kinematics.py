@@ -23,11 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.geometry.euler import matrix_from_euler
 from robot_retarget.robot.config import RobotConfig
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)

@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 import yaml
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ConfigError
 from robot_retarget.robot.config import (
     BoneConfig,
     BusConfig,
-    FloatArray,
     FrameConfig,
     HardwareSettings,
     JointConfig,

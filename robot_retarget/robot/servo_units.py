@@ -17,12 +17,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.errors import ServoRangeError
 from robot_retarget.robot.config import JointConfig, RobotConfig
 from robot_retarget.robot.servo_models import RPM_TO_RAD_S, ServoModel, servo_model
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 # Speed register resolution per model (rpm per step), ROBOTIS e-Manuals.
 VELOCITY_STEP_RPM: dict[str, float] = {

@@ -13,14 +13,12 @@ from __future__ import annotations
 
 from typing import Protocol
 
-import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.runtime.frame import FrameStream, check_frame, check_offsets
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 from robot_retarget.skeleton.skeleton import Skeleton
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class OnlineStep(Protocol):

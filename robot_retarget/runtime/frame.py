@@ -21,11 +21,11 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry.quaternion_tables import matrix_table, product_table
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 from robot_retarget.skeleton.tree_tables import ancestor_matrix, pointer_jumps
 
-FloatArray = npt.NDArray[np.float64]
 F32Array = npt.NDArray[np.float32]
 
 NUM_JOINTS = len(CANONICAL_JOINTS)

@@ -27,13 +27,12 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.runtime.copy import FastCopyRetargeter, rest_height_m
 from robot_retarget.runtime.frame import check_offsets
 from robot_retarget.runtime.pmnet import FastPMnetRetargeter, PMnetWeights
 from robot_retarget.runtime.residual import FastResidualRetargeter, ResidualWeights
-
-FloatArray = npt.NDArray[np.float64]
 
 FORMAT_VERSION = 1
 _META = "__meta__"

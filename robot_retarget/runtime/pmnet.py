@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.runtime.frame import (
     FrameStream,
     TreeKinematics,
@@ -25,8 +26,6 @@ from robot_retarget.runtime.frame import (
     qmul,
 )
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
-
-FloatArray = npt.NDArray[np.float64]
 
 # PMnet eq. 6: the scale factor S sums the bone lengths of the root, spine, neck and left-leg
 # joints. Their N_s only rescales Mixamo centimetres; our offsets are metres, so N_s = 1.

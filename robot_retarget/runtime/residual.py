@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.runtime.copy import rest_height_m
 from robot_retarget.runtime.frame import (
     NUM_JOINTS,
@@ -32,8 +33,6 @@ from robot_retarget.runtime.frame import (
     rotvec,
 )
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
-
-FloatArray = npt.NDArray[np.float64]
 
 _J = NUM_JOINTS
 _REL_SCALE = 10.0  # as robot_retarget.nn.models.residual

@@ -14,12 +14,11 @@ from types import TracebackType
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.hardware.bus import buses_from_config
 from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.sim.dxl_bus import SimulatedBus, buses_for_robot
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class SimulatedRobotBus:

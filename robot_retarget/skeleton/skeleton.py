@@ -19,10 +19,8 @@ from functools import cached_property
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.geometry import quaternion as quat
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)

@@ -12,9 +12,8 @@ from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
-import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from robot_retarget.array_types import FloatArray
 
 
 def pointer_jumps(parents: Sequence[int]) -> tuple[tuple[int, ...], ...]:

@@ -17,12 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import TracebackType
 
-import numpy as np
-import numpy.typing as npt
-
+from robot_retarget.array_types import FloatArray
 from robot_retarget.skeleton.skeleton import Skeleton
-
-FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_QUEUE_FRAMES = 256
 """Frames a network source buffers between two polls before it drops the oldest."""

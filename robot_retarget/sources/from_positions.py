@@ -15,11 +15,10 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton
-
-FloatArray = npt.NDArray[np.float64]
 
 _EPS = 1e-9
 _IDENTITY = np.eye(3)

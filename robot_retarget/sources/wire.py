@@ -47,10 +47,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import SourceError
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
-
-FloatArray = npt.NDArray[np.float64]
 
 WIRE_VERSION = 1
 MAGIC = b"RRM1"

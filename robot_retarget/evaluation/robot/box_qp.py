@@ -10,9 +10,8 @@ differential IK of :mod:`.gmr_style` (≤ 20 variables) needs a handful.
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from robot_retarget.array_types import FloatArray
 
 _TOL = 1e-12
 

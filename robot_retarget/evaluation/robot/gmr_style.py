@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import SolveError
 from robot_retarget.evaluation.robot.box_qp import box_qp
 from robot_retarget.evaluation.robot.references import CANONICAL_UP, LIMBS
@@ -48,8 +49,6 @@ from robot_retarget.optimize.chains import joints_above
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.canonical import Joint
-
-FloatArray = npt.NDArray[np.float64]
 
 _FEET = ("LeftFoot", "RightFoot")  # canonical foot joints (start of the foot bones)
 _SETTLE_TOL_RAD = 1e-7

@@ -15,10 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.evaluation.robot.segments import BodyPoints
 from robot_retarget.robot.config import RobotConfig
-
-FloatArray = npt.NDArray[np.float64]
 
 # Numerical slack when counting violations: a solver output exactly on a bound is not a violation.
 LIMIT_TOL_RAD = 1e-9

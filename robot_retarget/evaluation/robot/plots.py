@@ -5,13 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.evaluation.robot.runner import METHOD_LABELS, METHODS, EvalRobotReport
 from robot_retarget.evaluation.robot.segments import KINDS, RobotBodyModel, body_axes, to_body
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
-
-FloatArray = npt.NDArray[np.float64]
 
 _UP = np.array([0.0, 1.0, 0.0])
 

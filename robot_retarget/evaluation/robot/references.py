@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.evaluation.robot.segments import (
     RobotSegmentFrames,
     body_axes,
@@ -24,8 +25,6 @@ from robot_retarget.optimize.kinematic_limit import SegmentFrames
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.canonical import Joint
-
-FloatArray = npt.NDArray[np.float64]
 
 CANONICAL_UP = np.array([0.0, 1.0, 0.0])
 # (limb root, middle, end) canonical joints, and the robot bones' indices in SEGMENTS order:

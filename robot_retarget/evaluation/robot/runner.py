@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import SourceError
 from robot_retarget.evaluation.robot.gmr_style import GMRStyleIK
 from robot_retarget.evaluation.robot.metrics import (
@@ -66,7 +67,6 @@ from robot_retarget.optimize.kinematic_limit import KinematicLimit
 from robot_retarget.optimize.position_ik import PositionIK
 from robot_retarget.robot.config import RobotConfig
 
-FloatArray = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 METHODS = ("pipeline", "gmr", "baseline", "limit")

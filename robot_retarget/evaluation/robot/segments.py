@@ -22,12 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ConfigError
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.canonical import Joint
-
-FloatArray = npt.NDArray[np.float64]
 
 SIDES = ("Left", "Right")
 # Segment kinds in report order, with their canonical (start, end) joints ("{s}": the side).

@@ -25,8 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-import numpy.typing as npt
 import torch
 from torch import nn
 from torch.nn import functional as nnf
@@ -48,7 +46,6 @@ if TYPE_CHECKING:
     from robot_retarget.runtime.model import RuntimeModel
 
 Tensor = torch.Tensor
-FloatArray = npt.NDArray[np.float64]
 
 _QUAT_INIT_SCALE = 1e-2
 

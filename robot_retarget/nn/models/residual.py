@@ -40,8 +40,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-import numpy.typing as npt
 import torch
 from torch import nn
 from torch.nn import functional as nnf
@@ -64,7 +62,6 @@ if TYPE_CHECKING:
     from robot_retarget.runtime.model import RuntimeModel
 
 Tensor = torch.Tensor
-FloatArray = npt.NDArray[np.float64]
 
 # Relative rotations between neighbouring frames are a few hundredths of a radian; scaled so
 # the denoiser's inputs are of order one.

@@ -4,11 +4,10 @@
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 import torch
 from torch import nn
 
-FloatArray = npt.NDArray[np.float64]
+from robot_retarget.array_types import FloatArray
 
 
 def to_numpy(t: torch.Tensor) -> FloatArray:

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import casadi as ca
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize.parameter_layout import Parameter
 from robot_retarget.optimize.targets import FrameTargets, check_array
 from robot_retarget.optimize.terms.term import CostTerm, TermContext, weighted_blocks
-from robot_retarget.robot.config import FloatArray
 
 
 @dataclass(frozen=True, eq=False)  # holds an array

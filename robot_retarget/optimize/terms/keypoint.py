@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize.parameter_layout import Parameter
 from robot_retarget.optimize.targets import FrameTargets
 from robot_retarget.optimize.terms.term import CostTerm, TermContext
-from robot_retarget.robot.config import FloatArray
 
 
 @dataclass(frozen=True, eq=False)  # holds arrays

@@ -20,10 +20,10 @@ from typing import ClassVar
 
 import casadi as ca
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize.formulation import FrameQuantities
 from robot_retarget.optimize.parameter_layout import Parameter
 from robot_retarget.optimize.targets import FrameTargets
-from robot_retarget.robot.config import FloatArray
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,10 @@
+"""The numpy array aliases every module uses (float64 values, int64 indices, masks)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
