@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from robot_retarget.cli.data_dir import add_data_argument
 
@@ -54,6 +55,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="override an optimizer option of the robot's 'retarget:' section (tuning runs)",
+    )
+    parser.add_argument(
+        "--corrupt",
+        default=None,
+        metavar="KIND[,KIND…]|all",
+        help="instead: play each clip as a live sender with this input corruption (jitter, "
+        "dropout, swap, bone_length, latency, low_rate, or all) through the control loop, "
+        "for the model and copy-scaled, against clean input",
     )
     parser.add_argument(
         "--cache-dir",
@@ -101,6 +110,8 @@ def run(args: argparse.Namespace) -> int:
             subjects = tuple(s for s in args.val_subjects.split(",") if s)
         clips = validation_clips(args.data, subjects)
         model = args.model or default_model_name()
+        if args.corrupt is not None:
+            return _corrupted(config, clips, str(model), args)
         cache = (
             default_cache_dir() / "eval_robot" if args.cache_dir is None else Path(args.cache_dir)
         )
@@ -134,4 +145,24 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(report_dict(report), indent=2))
     else:
         print(markdown_report(report))
+    return 0
+
+
+def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int:
+    """``--corrupt``: the model and copy-scaled under each corruption kind (live loop)."""
+    from robot_retarget.errors import RetargetError
+    from robot_retarget.evaluation.live_corruption import KINDS
+    from robot_retarget.evaluation.robustness import markdown, robustness
+
+    kinds = KINDS if args.corrupt == "all" else tuple(k for k in args.corrupt.split(",") if k)
+    unknown = [k for k in kinds if k not in KINDS]
+    if unknown:
+        raise RetargetError(f"--corrupt: unknown kind(s) {unknown}; choose from {', '.join(KINDS)}")
+    models = [model] if model == "copy-scaled" else [model, "copy-scaled"]
+    rows = robustness(config, clips, models, kinds, max_frames=args.max_frames or 600,
+                      progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True))  # fmt: skip
+    if args.json:
+        print(json.dumps([r.__dict__ for r in rows], indent=2))
+    else:
+        print(markdown(rows))
     return 0

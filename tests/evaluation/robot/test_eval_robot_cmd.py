@@ -46,3 +46,12 @@ def test_unknown_subject_is_an_error(
 def test_bad_override() -> None:
     with pytest.raises(SystemExit):
         eval_robot_cmd.run(_args("--set", "w_orientation"))
+
+
+def test_corrupt_refuses_an_unknown_kind(capsys: pytest.CaptureFixture[str],
+                                         shared_data_dir: Path) -> None:  # fmt: skip
+    parser = argparse.ArgumentParser()
+    eval_robot_cmd.configure(parser)
+    args = parser.parse_args(["--data", str(shared_data_dir / "mocap"), "--corrupt", "fog"])
+    assert eval_robot_cmd.run(args) == 1
+    assert "unknown kind(s) ['fog']" in capsys.readouterr().err
