@@ -7,6 +7,7 @@ the feet must stand on z = 0 (± 1 cm) whenever the performer stands, and never 
 
 from __future__ import annotations
 
+import dataclasses
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from robot_retarget.errors import ConfigError
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.motion.trajectory import RobotTrajectory
@@ -21,11 +23,15 @@ from robot_retarget.nn.inference import load_model
 from robot_retarget.pipeline.convert import convert_motion
 from robot_retarget.pipeline.floating_base import (
     HUMAN_TO_WORLD,
+    FloatingBaseError,
     floating_base,
     foot_points,
     foot_skate_m_s,
+    human_foot_heights_m,
+    leg_length_m,
 )
 from robot_retarget.pipeline.step import RetargetStep
+from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.loader import load_robot_config
 from robot_retarget.skeleton.canonical import Joint
@@ -114,12 +120,13 @@ def test_feet_stand_on_the_ground_by_an_independent_urdf_fk(
         feet = _feet_world(config, tree, read)
         lowest = feet[:, :, 2].min(axis=1)
         assert lowest.min() > -0.01, (clip, lowest.min())  # never below the ground
-        # Where the performer stands (lowest foot on their ground), so does the robot.
+        # Where the performer stands (an ankle or a toe at its lowest, as in a heel strike or
+        # a toe-off), so does the robot.
         human = motion.resample(config.control_rate_hz)
         pos = human.positions()[: read.num_frames]
-        side = pos[:, [Joint.LeftFoot, Joint.RightFoot, Joint.LeftToeBase, Joint.RightToeBase], 1]
-        height = side.min(axis=1) - np.percentile(side.min(axis=1), 2.0)
-        stance = height < 0.02
+        joints = [Joint.LeftFoot, Joint.RightFoot, Joint.LeftToeBase, Joint.RightToeBase]
+        y = pos[:, joints, 1]
+        stance = (y - y.min(axis=0) < 0.015).any(axis=1)
         assert stance.sum() > 20, clip
         np.testing.assert_allclose(lowest[stance], 0.0, atol=0.01)
 
@@ -155,8 +162,42 @@ def test_pinning_stops_a_stance_foot_sliding(shared_data_dir: Path) -> None:
     assert foot_skate_m_s(pinned.feet, rate) < 0.5 * foot_skate_m_s(free.feet, rate)
 
 
-def test_bad_shapes_are_refused() -> None:
+def test_a_heel_strike_is_on_the_ground() -> None:
+    """Ankles stand higher than toes: a foot on its heel (ankle at its standing height, toe
+    raised) is on the ground, so is one on its toes; a foot with both raised is not."""
+    stand = np.zeros((4, 22, 3))
+    stand[:, [Joint.LeftFoot, Joint.RightFoot], 1] = 0.08
+    stand[:, [Joint.LeftToeBase, Joint.RightToeBase], 1] = 0.02
+    stand[1, [Joint.RightFoot, Joint.LeftToeBase, Joint.RightToeBase], 1] += 0.3  # heel strike
+    stand[2, [Joint.LeftFoot, Joint.RightFoot, Joint.RightToeBase], 1] += 0.3  # on the toes
+    stand[3, [Joint.LeftFoot, Joint.RightFoot, Joint.LeftToeBase, Joint.RightToeBase], 1] += 0.1
+    heights = human_foot_heights_m(np.concatenate([np.tile(stand[:1], (60, 1, 1)), stand]))
+    np.testing.assert_allclose(heights.min(axis=1)[-4:], [0.0, 0.0, 0.0, 0.1], atol=1e-12)
+
+
+def test_a_jump_leaves_the_ground(shared_data_dir: Path) -> None:
+    """CMU 02_04 (jump, balance): the robot's feet leave the ground only while the performer
+    is in the air, by the performer's height scaled to the robot."""
+    config = load_robot_config("poppy_humanoid")
+    motion = load_motion(shared_data_dir / "mocap" / "02" / "02_04.bvh").resample(50.0)
+    q = np.tile(config.init_pose, (motion.num_frames, 1))
+    base = floating_base(config, motion, q)
+    lowest = base.feet[:, :, 2].min(axis=1)
+    ratio = leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(motion.skeleton)
+    airborne = human_foot_heights_m(motion.positions()).min(axis=1)
+    assert airborne.max() > 0.15  # the performer's jump, metres
+    np.testing.assert_allclose(lowest, ratio * airborne, atol=1e-9)
+
+
+def test_bad_input_is_refused() -> None:
     config = load_robot_config("op3")
     motion = demo_motion(fps=25.0).frames(0, 5)
-    with pytest.raises(ValueError, match="q must be"):
+    with pytest.raises(FloatingBaseError, match="q must be") as err:
         floating_base(config, motion, np.zeros((4, config.num_joints)))
+    assert err.value.got == (4, config.num_joints)
+    footless = dataclasses.replace(
+        config, bones=tuple(b for b in config.bones if "Foot" not in b.canonical_end
+                            and "Toe" not in b.canonical_end)
+    )  # fmt: skip
+    with pytest.raises(ConfigError, match="no foot bones"):
+        foot_points(footless)
