@@ -50,6 +50,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--max-frames", type=int, help="convert only the first N frames")
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
+    parser.add_argument(
+        "--lead-in",
+        action="store_true",
+        help="prepend the move from the robot's init pose to the first frame at 25 %% of the "
+        "velocity limits (the stream's ramp speed), stamped before t = 0 (t0 < 0)",
+    )
 
 
 @dataclass(frozen=True)
@@ -177,7 +183,13 @@ def run(args: argparse.Namespace) -> int:
         try:
             motion = load_motion(clip, max_frames=args.max_frames)
             label = f"[{k + 1}/{len(jobs)}] {clip.name}"
-            result = convert_motion(motion, step, fps=args.fps, progress=ProgressBar(label))
+            result = convert_motion(
+                motion,
+                step,
+                fps=args.fps,
+                progress=ProgressBar(label),
+                lead_in_speed_fraction=0.25 if args.lead_in else None,
+            )
             traj = result.trajectory
             # All of a clip's outputs, or none: each is written to a temporary file next to
             # it and moved into place only when every one of them has been written.

@@ -21,12 +21,14 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.hardware.safety import SafetyLayer
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.pipeline.floating_base import floating_base
 from robot_retarget.pipeline.recorder import RecordingBackend
+from robot_retarget.pipeline.start_ramp import toward
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 
@@ -90,8 +92,14 @@ def convert_motion(
     *,
     fps: float | None = None,
     progress: Callable[[int, int], None] | None = None,
+    lead_in_speed_fraction: float | None = None,
 ) -> ClipResult:
-    """Retarget ``motion`` frame by frame at ``fps`` (default: the robot's control rate)."""
+    """Retarget ``motion`` frame by frame at ``fps`` (default: the robot's control rate).
+
+    ``lead_in_speed_fraction``: also prepend a move from the robot's init pose to the first
+    frame at that fraction of each joint's velocity limit (the stream's ramp speed is 0.25),
+    stamped before the clip: ``t0`` < 0, the clip itself still starts at t = 0 and is
+    unchanged. Without it the file starts at the clip's first frame."""
     config = step.config
     rate = float(fps) if fps is not None else config.control_rate_hz
     m = motion if abs(motion.fps - rate) < 1e-9 else motion.resample(rate)
@@ -122,23 +130,47 @@ def convert_motion(
     safety.disconnect()
     # The base link's pose in the robot's world (Z up, x forward), feet on the ground.
     base = floating_base(config, m, q) if n else None
+    pos = base.root_pos if base is not None else root_pos
+    quat = base.root_quat if base is not None else root_quat
+    t0 = 0.0
+    limits = check_limits(config, q, dt)
+    if lead_in_speed_fraction is not None and n:
+        lead = lead_in(config, q[0], lead_in_speed_fraction * config.max_velocity * dt)
+        k = len(lead)
+        q = np.vstack([lead, q])
+        pos = np.vstack([np.repeat(pos[:1], k, axis=0), pos])  # the base holds its first pose
+        quat = np.vstack([np.repeat(quat[:1], k, axis=0), quat])
+        frame_ms = np.concatenate([np.zeros(k), frame_ms])
+        t0 = -k * dt
+        limits = check_limits(config, q, dt, q_start=config.init_pose)
     traj = RobotTrajectory(
         joint_names=config.joint_names,
         q=q,
         fps=rate,
-        root_pos=base.root_pos if base is not None else root_pos,
-        root_quat=base.root_quat if base is not None else root_quat,
-        t0=0.0,
+        root_pos=pos,
+        root_quat=quat,
+        t0=t0,
         frame_ms=frame_ms,
     )
     return ClipResult(
         trajectory=traj,
         wall_s=wall,
-        limits=check_limits(config, q, dt),
+        limits=limits,
         safety_commands_clipped=safety.stats.commands_clipped,
         safety_joint_clips=safety.stats.position_clips + safety.stats.step_clips,
         fallbacks=step.stats.fallbacks,
     )
+
+
+def lead_in(config: RobotConfig, q_first: FloatArray, step_rad: FloatArray) -> FloatArray:
+    """(K, J) commands from the init pose (excluded) to just before ``q_first``, each joint
+    moving at most ``step_rad`` per frame: the robot's move into a file's first frame."""
+    out = []
+    q = np.array(config.init_pose, dtype=np.float64)
+    while np.any(np.abs(q_first - q) > step_rad):
+        q = toward(q, q_first, step_rad)
+        out.append(q)
+    return np.array(out).reshape(-1, config.num_joints)
 
 
 def output_paths(input_path: Path, out: Path, suffix: str) -> list[tuple[Path, Path]]:
