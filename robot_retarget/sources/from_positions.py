@@ -30,6 +30,13 @@ _TRIADS: dict[int, tuple[int, tuple[int, int]]] = {
     Joint.Spine2: (Joint.Neck, (Joint.LeftShoulder, Joint.RightShoulder)),
 }
 _TRIAD_FALLBACK: dict[int, tuple[int, int]] = {Joint.Spine2: (Joint.LeftArm, Joint.RightArm)}
+# The primary axis may come from a joint further up when the nearest one sits on the joint
+# itself (CMU MotionBuilder skeletons put Spine at the Hips: a zero-length axis would leave the
+# Hips unrotated, and every pose turned by the performer's heading, up to 90° off).
+_PRIMARY_CHAIN: dict[int, tuple[int, ...]] = {
+    Joint.Hips: (Joint.Spine, Joint.Spine1, Joint.Spine2, Joint.Neck),
+    Joint.Spine2: (Joint.Neck, Joint.Head),
+}
 _MIN_SECONDARY_M = 1e-3
 
 
@@ -70,6 +77,11 @@ class PositionsToRotations:
         self._rest_frames: dict[int, FloatArray | None] = {}
         self._triads: dict[int, tuple[int, tuple[int, int]]] = {}
         for j, (prim, (left, right)) in _TRIADS.items():
+            prim = next(
+                (c for c in _PRIMARY_CHAIN[j]
+                 if np.linalg.norm(self._rest[c] - self._rest[j]) >= _MIN_SECONDARY_M),
+                prim,
+            )  # fmt: skip
             side = self._rest[left] - self._rest[right]
             if np.linalg.norm(side) < _MIN_SECONDARY_M and j in _TRIAD_FALLBACK:
                 left, right = _TRIAD_FALLBACK[j]

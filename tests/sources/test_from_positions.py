@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, default_canonical_skeleton
+from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint, default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import forward_kinematics
 from robot_retarget.sources.from_positions import PositionsToRotations
 
@@ -51,3 +51,25 @@ def test_rest_pose_gives_identity_rotations() -> None:
 def test_degenerate_positions_do_not_fail() -> None:
     solved, _ = SOLVER.solve(np.zeros((22, 3)))
     assert np.all(np.isfinite(solved))
+
+
+@settings(max_examples=30)
+@given(
+    yaw=st.floats(-np.pi, np.pi), rotvecs=arrays(np.float64, (22, 3), elements=st.floats(-0.8, 0.8))
+)
+def test_a_spine_joint_at_the_hips_still_turns_the_hips(yaw: float, rotvecs: np.ndarray) -> None:
+    """CMU MotionBuilder skeletons put Spine on the Hips (a zero-length bone): the Hips'
+    rotation must come from the next spine joint up, not be left at identity (a performer
+    facing sideways came out up to 90° off)."""
+    base = default_canonical_skeleton()
+    offsets = base.offsets.copy()
+    offsets[Joint.Spine1] += offsets[Joint.Spine]  # Spine moves onto the Hips; the rest stays
+    offsets[Joint.Spine] = 0.0
+    skeleton = type(base)(base.names, base.parents, offsets)
+    quats = quat.from_rotation_vector(rotvecs)
+    quats[0] = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), yaw)  # the performer turned
+    quats[Joint.Spine] = quat.identity(())  # a zero-length bone's own turn cannot be seen
+    pos = forward_kinematics(skeleton, quats[None], np.zeros((1, 3)))[0][0]
+    local, root = PositionsToRotations(skeleton).solve(pos)
+    again = forward_kinematics(skeleton, local[None], root[None])[0][0]
+    np.testing.assert_allclose(again, pos, atol=1e-6)
