@@ -1,4 +1,6 @@
-"""``doctor``: is the serial setup fit to drive a robot? Ports, servos, latency, cycle time.
+"""``doctor``: is the serial setup fit to drive a robot? Ports, servos, latency, cycle time, and
+per servo the EEPROM other tools leave behind (limits, Homing Offset, Drive Mode;
+``--fix-registers`` writes the values the config expects).
 
 Ports use the same syntax as ``stream`` (robot_retarget.cli.port_args): ``--port PATH`` for a
 one-bus robot, ``--port BUS=PATH`` once per bus otherwise; with ``--port`` only the buses it
@@ -55,6 +57,7 @@ def _port_items(args: argparse.Namespace) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from robot_retarget.hardware import doctor
+    from robot_retarget.hardware.servo_registers import servo_summary
 
     ports = doctor.serial_ports()
     items = _port_items(args)
@@ -120,20 +123,23 @@ def run(args: argparse.Namespace) -> int:
         for sid, expected, got in report.mismatched:
             print(f"  MODEL MISMATCH ID {sid}: config {expected}, servo {doctor.model_name(got)}")
         for f in report.fixed:
-            print(f"  FIXED {f.line()}")
-        bad = report.register_mismatches
-        for f in bad:
-            print(f"  REGISTER {f.line()}")
-        if report.registers:
-            n = len({f.servo_id for f in report.registers})
-            print(
-                f"  registers (limits, homing offset, drive mode) of {n} servo(s): "
-                + (
-                    f"{len(bad)} mismatch(es); `doctor --fix-registers` writes them"
-                    if bad
-                    else "ok"
-                )
+            print(f"  FIXED ID {f.servo_id} ({f.joint}) {f.register}: {f.found} → {f.fix}")
+        for problem in report.fix_errors:
+            print(f"  NOT FIXED: {problem}")
+        by_servo = report.registers_by_servo()
+        if by_servo:
+            bad = report.register_mismatches
+            verdict = f"{len(bad)} mismatch(es)" if bad else "OK"
+            if bad and not args.fix_registers:
+                verdict += "; `doctor --fix-registers` writes them"
+            what = (
+                "CW/CCW angle limits"
+                if bus_cfg.protocol == 1.0
+                else "position limits, homing offset, drive mode"
             )
+            print(f"  registers other tools leave ({what}), per servo: {verdict}")
+            for findings in by_servo.values():
+                print(f"    {servo_summary(findings)}")
         if report.cycle is not None:
             c = report.cycle
             print(

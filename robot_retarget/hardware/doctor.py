@@ -1,5 +1,7 @@
 """Checks behind ``robot-retarget doctor``: serial ports, FTDI latency timers, which servos
-answer on a bus compared with the robot config, and a measured read/write cycle time.
+answer on a bus compared with the robot config, each servo's limit, Homing Offset and Drive
+Mode registers (robot_retarget.hardware.servo_registers; fixed on request), and a measured
+read/write cycle time.
 
 No printing here: functions return small dataclasses the CLI formats.
 """
@@ -14,10 +16,17 @@ from pathlib import Path
 from serial.tools import list_ports
 
 from robot_retarget.bench_stats import TimingStats
+from robot_retarget.errors import HardwareError
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import DynamixelBus
 from robot_retarget.hardware.control_table import control_table
-from robot_retarget.hardware.servo_registers import RegisterFinding, check_servo, fix_servo
+from robot_retarget.hardware.servo_registers import (
+    EepromLockedError,
+    RegisterFinding,
+    RegisterWriteError,
+    check_servo,
+    fix_servo,
+)
 from robot_retarget.robot.config import BusConfig, RobotConfig
 from robot_retarget.robot.servo_models import SERVO_MODELS, servo_model
 
@@ -83,10 +92,19 @@ class BusReport:
     cycle_mode: str = ""
     registers: list[RegisterFinding] = field(default_factory=list)  # of the servos found
     fixed: list[RegisterFinding] = field(default_factory=list)  # mismatches written back
+    # Servos whose registers could not be fixed (EEPROM locked, a write refused).
+    fix_errors: list[HardwareError] = field(default_factory=list)
 
     @property
     def register_mismatches(self) -> list[RegisterFinding]:
         return [f for f in self.registers if not f.ok]
+
+    def registers_by_servo(self) -> dict[int, list[RegisterFinding]]:
+        """The register findings grouped per servo ID, in the config's joint order."""
+        out: dict[int, list[RegisterFinding]] = {}
+        for f in self.registers:
+            out.setdefault(f.servo_id, []).append(f)
+        return out
 
     @property
     def ok(self) -> bool:
@@ -143,8 +161,14 @@ def check_bus(
             findings = check_servo(bus, j, table)
             bad = [f for f in findings if not f.ok]
             if bad and fix_registers:
-                still = fix_servo(bus, j, table, bad)
-                report.fixed += [f for f in bad if f.register not in {s.register for s in still}]
+                try:
+                    still = fix_servo(bus, j, table, bad)
+                except (EepromLockedError, RegisterWriteError) as exc:
+                    report.fix_errors.append(exc)  # the other servos are still fixed
+                else:
+                    report.fixed += [
+                        f for f in bad if f.register not in {s.register for s in still}
+                    ]
                 findings = check_servo(bus, j, table)
             report.registers += findings
         present_ids = [j.servo_id for j in joints if j.servo_id in report.found]

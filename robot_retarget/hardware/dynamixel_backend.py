@@ -92,7 +92,13 @@ class _BusGroup:
 
 
 class DynamixelBackend(JointBackend):
-    """Dynamixel robot on ``buses`` (bus name in the config → DynamixelBus, opened here)."""
+    """Dynamixel robot on ``buses`` (bus name in the config → DynamixelBus, opened here).
+
+    ``fix_registers``: where a servo's angle/position limits, Homing Offset or Drive Mode
+    disagree with the config, connect() writes the expected values (torque off) and reads them
+    back instead of raising RegisterMismatchError; a locked Protocol 1.0 EEPROM still raises
+    (EepromLockedError).
+    """
 
     def __init__(
         self,
@@ -230,10 +236,10 @@ class DynamixelBackend(JointBackend):
                 joint = self.config.joints[i]
                 bad = [f for f in check_servo(g.bus, joint, table) if not f.ok]
                 if bad and self.fix_registers:
-                    bad = fix_servo(g.bus, joint, table, bad)
+                    bad = fix_servo(g.bus, joint, table, bad)  # read back: what did not stick
                 mismatches += bad
             if mismatches:
-                raise RegisterMismatchError(mismatches, g.name)
+                raise RegisterMismatchError(mismatches, g.name, after_fix=self.fix_registers)
 
     def _write_checked(
         self, g: _BusGroup, sid: int, table: ControlTable, name: str, value: int

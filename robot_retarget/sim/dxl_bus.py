@@ -2,12 +2,20 @@
 
 The real dynamixel-sdk + pyserial open the pty's slave path like a USB adapter; this object
 reads the master side, frames and checks every packet strictly (header, length, CRC-16 or
-checksum, Protocol 2.0 byte stuffing: an unstuffed ``FF FF FD`` in a payload is malformed and
-gets no reply), runs the instruction on its :class:`robot_retarget.sim.servo.SimServo` objects
-and writes the status packets back. Optional wire-time model: replies come no earlier than the
-bytes would take
-on a real bus at the configured baud rate (10 bits per byte), plus each servo's return delay.
-Fault injection: dropped, corrupt, late or noisy replies, hardware error bits, an unplugged port.
+checksum, Protocol 2.0 byte stuffing), runs the instruction on its
+:class:`robot_retarget.sim.servo.SimServo` objects and writes the status packets back.
+Optional wire-time model: replies come no earlier than the bytes would take on a real bus at
+the configured baud rate (10 bits per byte), plus each servo's return delay. Fault injection:
+dropped, corrupt, late or noisy replies, hardware error bits, an unplugged port.
+
+An unstuffed ``FF FF FD`` in a Protocol 2.0 payload (what dynamixel-sdk 4.1.0 sends: its
+``txPacket`` drops the stuffed copy) gets **no reply**. Decided from the protocol definition:
+the sender must insert ``FD`` after every ``FF FF FD`` in INST + PARAMS and LEN counts the
+stuffed bytes; a receiver removes the ``FD`` after each ``FF FF FD``. Without it the bytes
+after ``FF FF FD`` are neither a stuffing byte nor payload the length field accounts for —
+to the servo it is a header inside a packet, so the frame it was in is malformed, not a
+packet with a bad CRC: the servo never framed a packet it could answer (not even with a CRC
+error status) and waits for the next header. The client times out; nothing is written.
 
 Runs in a background thread (tests) or standalone::
 

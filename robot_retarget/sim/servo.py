@@ -7,10 +7,20 @@ position/velocity follow the goal through :class:`robot_retarget.sim.kinematic.S
 whenever torque is on, advanced lazily to the bus's clock when the servo is touched.
 
 As the e-Manuals describe: on Protocol 2.0 models (XM430) Present and Goal Position are in the
-user's frame — the horn's own position mirrored about the centre when Drive Mode's reverse bit
-is set, then shifted by Homing Offset — so a servo calibrated by another tool really does put
-its horn elsewhere. On Protocol 1.0 models (MX, AX) Lock = 1 makes the EEPROM area read-only,
-and Lock itself cannot be cleared, until the servo is powered off (a new SimServo).
+user's frame, so a servo calibrated by another tool really does put its horn elsewhere:
+
+    Present Position = mirror(horn) + Homing Offset,  mirror(t) = 4096 − t if reverse else t
+
+"Present Position = Actual Position + Homing Offset" is the XM430 e-Manual's formula; Drive
+Mode bit 0 (reverse) inverts the direction of Goal and Present Position, read here as the
+horn's angle negated (−t modulo one turn: 4096 − t, so the centre 2048 stays 2048), and "the
+sign of Homing Offset is not reversed" in reverse mode. A goal is taken back through the same
+map. In Position Control Mode (single turn) a Homing Offset outside ±1024 is ignored, as the
+e-Manual states. Min/Max Position Limit and CW/CCW Angle Limit bound Goal Position in that user
+frame: a goal outside them is refused (Protocol 1.0: the Angle Limit error bit; Protocol 2.0:
+Data Limit Error) and the servo keeps its previous goal, which under Sync Write (no status
+packet) nobody hears about. On Protocol 1.0 models (MX, AX) Lock = 1 makes the EEPROM area
+read-only, and Lock itself cannot be cleared, until the servo is powered off (a new SimServo).
 """
 
 from __future__ import annotations
@@ -29,6 +39,10 @@ OK = 0
 ACCESS_ERROR = 1
 DATA_LIMIT_ERROR = 2
 DATA_LENGTH_ERROR = 3
+
+_POSITION_MODE = 3  # XM430 Operating Mode: position control within one turn
+_EXTENDED_POSITION_MODE = 4
+_MAX_SINGLE_TURN_HOMING = 1024  # valid Homing Offset range in Position Control Mode
 
 
 class SimServo:
@@ -84,7 +98,7 @@ class SimServo:
 
     def _position_limits(self) -> tuple[int, int]:
         if self.protocol == 2.0:
-            if self.get("operating_mode") == 4:  # extended position: ±256 turns
+            if self.get("operating_mode") == _EXTENDED_POSITION_MODE:  # ±256 turns, no limits
                 return -1_048_575, 1_048_575
             return self.get("min_position_limit"), self.get("max_position_limit")
         return self.get("cw_angle_limit"), self.get("ccw_angle_limit")
@@ -130,7 +144,13 @@ class SimServo:
         return "drive_mode" in self.table and bool(self.get("drive_mode") & 0x01)
 
     def _homing(self) -> int:
-        return self.get("homing_offset") if "homing_offset" in self.table else 0
+        if "homing_offset" not in self.table:
+            return 0
+        offset = self.get("homing_offset")
+        # e-Manual: in (single-turn) Position Control Mode an offset outside ±1024 is ignored.
+        if self.get("operating_mode") == _POSITION_MODE and abs(offset) > _MAX_SINGLE_TURN_HOMING:
+            return 0
+        return offset
 
     def user_from_horn(self, horn_ticks: int) -> int:
         raw = 2 * self.model.zero_tick - horn_ticks if self._reversed() else horn_ticks

@@ -10,6 +10,7 @@ import pytest
 
 from robot_retarget.cli import doctor_cmd
 from robot_retarget.hardware import doctor
+from robot_retarget.hardware.servo_registers import EepromLockedError, joint_tick_range
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.sim.dxl_bus import SimulatedBus
 
@@ -101,3 +102,51 @@ def test_doctor_reports_and_fixes_registers_left_by_other_tools(
     assert fixed.ok
     assert [f.register for f in fixed.fixed] == ["homing_offset"]
     assert sim.servos[knee.servo_id].get("homing_offset") == 0
+
+
+def test_doctor_command_lists_registers_per_servo_and_fixes_them(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus], capsys: pytest.CaptureFixture[str]
+) -> None:
+    if op3.source_path is None:
+        pytest.skip("configs/robots/op3.yaml not available to the loader yet")
+    sim = op3_sim[op3.buses[0].name]
+    knee = next(j for j in op3.joints if j.name == "l_knee")
+    sim.servos[knee.servo_id]._put("drive_mode", 1)  # LeRobot's reverse bit
+    parser = argparse.ArgumentParser()
+    doctor_cmd.configure(parser)
+    args = ["--robot", "op3", "--port", sim.port or "", "--cycles", "0"]
+    assert doctor_cmd.run(parser.parse_args(args)) == 1
+    out = capsys.readouterr().out
+    lines = [line.strip() for line in out.splitlines() if line.strip().startswith("ID ")]
+    assert len(lines) == op3.num_joints  # one line per servo
+    assert f"ID {knee.servo_id} (l_knee): MISMATCH drive_mode = 1, expected 0" in out
+    assert sum("OK (min_position_limit 0, max_position_limit 4095" in x for x in lines) == 19
+    assert doctor_cmd.run(parser.parse_args([*args, "--fix-registers"])) == 0
+    out = capsys.readouterr().out
+    assert f"FIXED ID {knee.servo_id} (l_knee) drive_mode: 1 → 0" in out
+    assert "doctor: OK" in out
+    assert sim.servos[knee.servo_id].get("drive_mode") == 0
+
+
+def test_doctor_fixes_what_it_can_and_names_a_locked_servo(
+    poppy: RobotConfig, poppy_sim: dict[str, SimulatedBus]
+) -> None:
+    """Two servos of one bus with pypot-like limits, one of them locked: the other is fixed,
+    the locked one is named (not written) and the bus is not OK."""
+    bus_cfg = poppy.buses[0]
+    first, second = [j for j in poppy.joints if j.bus == bus_cfg.name][:2]
+    sim = poppy_sim[bus_cfg.name]
+    for j in (first, second):
+        lo, _hi = joint_tick_range(j)
+        sim.servos[j.servo_id]._put("cw_angle_limit", lo + 10)
+    sim.servos[first.servo_id]._put("lock", 1)
+    report = doctor.check_bus(poppy, bus_cfg, sim.port or "", cycles=0, fix_registers=True)
+    [locked] = report.fix_errors
+    assert isinstance(locked, EepromLockedError)
+    assert (locked.servo_id, locked.joint, locked.register) == (first.servo_id, first.name, "lock")
+    assert [(f.servo_id, f.register) for f in report.register_mismatches] == [
+        (first.servo_id, "cw_angle_limit")
+    ]
+    assert [(f.servo_id, f.register) for f in report.fixed] == [(second.servo_id, "cw_angle_limit")]
+    assert sim.servos[second.servo_id].get("cw_angle_limit") == 0
+    assert not report.ok

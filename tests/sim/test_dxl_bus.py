@@ -276,3 +276,46 @@ def test_fast_bulk_read_answers_in_one_packet_with_running_crcs() -> None:
     assert 0 < len(cut) < len(reply)
     servos[0]._put("firmware_version", 44)
     assert bus.feed(p.build_v2(p.BROADCAST_ID, p.INST_FAST_BULK_READ, params)) == b""
+
+
+def test_the_sdks_unstuffed_packet_gets_no_reply_and_a_stuffed_one_does(
+    v2_client: Client, v2_bus: SimulatedBus
+) -> None:
+    """dynamixel-sdk sends FF FF FD in a payload without the stuffing FD: malformed, so no
+    status at all (the client times out) and nothing written; the backend's bus stuffs it."""
+    port, ph = v2_client
+    offset = -131073  # little endian FF FF FD FF
+    result, _error = ph.write4ByteTxRx(port, 1, 20, offset & 0xFFFFFFFF)
+    assert result == sdk.COMM_RX_TIMEOUT
+    v2_bus.settle()
+    assert v2_bus.servos[1].get("homing_offset") == 0
+    assert "stuffing" in v2_bus.log.rejected[-1][1]
+    port.closePort()
+    bus = DynamixelBus(v2_bus.port or "", protocol=2.0, baud_rate=2_000_000,
+                       packet_timeout_ms=20.0)  # fmt: skip
+    bus.open()
+    try:
+        assert bus.write(1, 20, p.le_bytes(offset, 4)) == 0
+    finally:
+        bus.close()
+    assert v2_bus.servos[1].get("homing_offset") == offset
+
+
+def test_goals_outside_the_angle_limits_are_refused_and_silently_under_sync_write(
+    v1_client: Client, v1_bus: SimulatedBus
+) -> None:
+    """Limits pypot left (here 1800 … 2300): a direct write answers with the Angle Limit bit
+    and keeps the old goal; a Sync Write has no status, so the goal is just not taken."""
+    port, ph = v1_client
+    servo = v1_bus.servos[11]
+    servo._put("cw_angle_limit", 1800)
+    servo._put("ccw_angle_limit", 2300)
+    assert ph.write2ByteTxRx(port, 11, 30, 2500) == (OK, p.ERR1_ANGLE_LIMIT)
+    assert servo.get("goal_position") == 2048
+    gsw = sdk.GroupSyncWrite(port, ph, 30, 2)
+    gsw.addParam(11, list(p.le_bytes(1700, 2)))
+    gsw.addParam(13, list(p.le_bytes(1700, 2)))
+    assert gsw.txPacket() == OK
+    v1_bus.settle()
+    assert servo.get("goal_position") == 2048  # refused, and nobody heard
+    assert v1_bus.servos[13].get("goal_position") == 1700

@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from robot_retarget.robot.config import JointConfig
+from robot_retarget.robot.loader import load_robot_config
+from robot_retarget.robot.servo_units import JointServoUnits
 from robot_retarget.sim.servo import ACCESS_ERROR, DATA_LIMIT_ERROR, OK, SimServo
 
 
@@ -80,3 +85,56 @@ def test_lock_makes_the_eeprom_read_only_until_power_off(model: str) -> None:
     goal = servo.table["goal_position"]
     assert servo.write(goal.address, (512).to_bytes(2, "little")) == OK  # RAM still writable
     assert SimServo(11, model).get("lock") == 0  # power-cycled
+
+
+def test_reverse_and_homing_together_the_offset_keeps_its_sign() -> None:
+    """e-Manual: in reverse mode the sign of Homing Offset is not reversed."""
+    servo = SimServo(1, "XM430-W350")
+    servo._put("drive_mode", 1)
+    servo._put("homing_offset", 100)
+    _settle(servo, 2048 + 100 + 50)  # 50 ticks past the shifted centre, mirrored
+    assert servo.present_rad == pytest.approx(-50 * servo.model.rad_per_tick, abs=2e-3)
+    assert servo.get("present_position") == pytest.approx(2198, abs=1)
+
+
+def test_a_homing_offset_beyond_one_quarter_turn_is_ignored_in_position_mode() -> None:
+    """e-Manual: in Position Control Mode only −1024 … 1024 applies; extended mode takes any."""
+    servo = SimServo(1, "XM430-W350")
+    servo._put("homing_offset", 1500)
+    servo.advance(0.01)
+    assert servo.get("present_position") == 2048
+    servo._put("homing_offset", -1024)
+    servo.advance(0.01)
+    assert servo.get("present_position") == 1024
+    servo._put("homing_offset", 1500)
+    servo._put("operating_mode", 4)  # extended position
+    servo.advance(0.01)
+    assert servo.get("present_position") == 2048 + 1500
+
+
+@settings(max_examples=200)
+@given(
+    joint=st.sampled_from(load_robot_config("op3").joints),
+    fraction=st.floats(0.0, 1.0),
+    homing=st.integers(-1024, 1024),
+    reverse=st.booleans(),
+)
+def test_rad_to_ticks_through_homing_and_reverse_and_back(
+    joint: JointConfig, fraction: float, homing: int, reverse: bool
+) -> None:
+    """A joint angle → the backend's tick → the horn of a servo calibrated elsewhere → the
+    tick it reports → the same angle; and the horn sits where the e-Manual's formula says."""
+    q = joint.lower_rad + fraction * (joint.upper_rad - joint.lower_rad)
+    units = JointServoUnits(joint)
+    tick = units.to_tick(q)
+    servo = SimServo(joint.servo_id, joint.servo_model)
+    servo._put("homing_offset", homing)
+    servo._put("drive_mode", int(reverse))
+    horn = servo.horn_from_user(tick)
+    assert servo.user_from_horn(horn) == tick
+    assert abs(units.from_tick(servo.user_from_horn(horn)) - q) <= servo.model.rad_per_tick / 2
+    # Present = mirror(horn) + offset: the horn sits (tick − offset) from the centre, mirrored.
+    sign = -1 if reverse else 1
+    assert horn - 2048 == sign * (tick - homing - 2048)
+    servo.set_present_rad(servo.ticks_to_rad(horn))
+    assert servo.get("present_position") == tick
