@@ -48,7 +48,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
     parser.add_argument(
-        "--model", required=True, choices=("nkn", "pmnet", "residual"), help="network"
+        "--model",
+        required=True,
+        choices=("nkn", "pmnet", "residual", "agnostic2d"),
+        help="network (agnostic2d: the 2D keypoint model, robot_retarget.nn.agnostic2d_training)",
     )
     add_data_argument(parser)
     parser.add_argument("--out", required=True, help="run folder, e.g. runs/pmnet-1")
@@ -122,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.threads is not None:
         torch.set_num_threads(args.threads)
+    if args.model == "agnostic2d":
+        return _run_agnostic2d(args)
     subjects = tuple(s for s in args.val_subjects.split(",") if s)
     robots = tuple(r for r in args.robots.split(",") if r)
     if args.resume and Path(args.out, "config.json").is_file():
@@ -192,4 +197,53 @@ def run(args: argparse.Namespace) -> int:
             }
         )
     )
+    return 0
+
+
+def _run_agnostic2d(args: argparse.Namespace) -> int:
+    """The 2D keypoint model has its own loop (two camera views per window, 3D targets)."""
+    from robot_retarget.nn.agnostic2d_training import (
+        KeypointProgress,
+        KeypointTrainConfig,
+        train_agnostic2d,
+    )
+
+    if args.resume:
+        raise TrainArgumentError("--resume is not supported for agnostic2d; start a new run")
+    config = KeypointTrainConfig(
+        data_dir=args.data,
+        out_dir=args.out,
+        steps=args.steps,
+        batch_size=args.batch_size,
+        window_frames=args.window,
+        fps=args.fps,
+        validation_subjects=tuple(s for s in args.val_subjects.split(",") if s),
+        val_every=args.val_every,
+        seed=args.seed,
+        lr=args.lr,
+        model_config=_model_config(args.model_config),
+        max_frames=args.max_frames,
+        cache_dir=args.cache_dir,
+    )
+
+    def show(p: KeypointProgress) -> None:
+        if args.quiet:
+            return
+        val = (
+            f" val {p.validation['direction_error_deg_causal']:.2f}° causal"
+            f" / {p.validation['direction_error_deg_clip']:.2f}° clip"
+            if p.validation
+            else ""
+        )
+        end = "\n" if p.validation is not None or p.step == p.total_steps else ""
+        print(
+            f"\r{_bar(p.step, p.total_steps)} {p.step}/{p.total_steps} loss "
+            f"{p.losses['total']:.4f}{val} ({p.elapsed_s:.0f} s)",
+            end=end,
+            file=sys.stderr,
+            flush=True,
+        )
+
+    command = "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
+    print(json.dumps(train_agnostic2d(config, progress=show, command=command)))
     return 0

@@ -5,7 +5,9 @@
 - ``replay:CLIP.bvh`` — a clip played in real time (``loop`` / ``speed`` options);
 - ``udp://HOST:PORT`` — canonical joint positions or rotations, JSON or binary
   (wire format: :mod:`robot_retarget.sources.wire`);
-- ``tcp-bvh://HOST:PORT`` — a BVH stream from mocap software (:mod:`.tcp_bvh`).
+- ``tcp-bvh://HOST:PORT`` — a BVH stream from mocap software (:mod:`.tcp_bvh`);
+- ``udp-keypoints://HOST:PORT`` — COCO-17 2D keypoints from a camera pose estimator, lifted by
+  the keypoint model (:mod:`.keypoints.udp_keypoints`).
 
 Network sources use 127.0.0.1 unless ``allow_remote`` is given.
 """
@@ -29,7 +31,10 @@ __all__ = [
     "open_source",
 ]
 
-SOURCE_FORMS = "replay:CLIP.bvh, udp://127.0.0.1:9750 or tcp-bvh://127.0.0.1:PORT"
+SOURCE_FORMS = (
+    "replay:CLIP.bvh, udp://127.0.0.1:9750, tcp-bvh://127.0.0.1:PORT or "
+    "udp-keypoints://127.0.0.1:9751"
+)
 
 
 def _host_port(spec: str, default_port: int | None) -> tuple[str, int]:
@@ -54,6 +59,7 @@ def open_source(
     token: str = "",
     allow_remote: bool = False,
     max_frames: int | None = None,
+    keypoint_model: str | None = None,
 ) -> MotionSource:
     """A (not yet started) source for ``spec``; raises SourceError for anything unusable."""
     if spec.startswith("replay:"):
@@ -76,4 +82,16 @@ def open_source(
 
         host, port = _host_port(spec, None)
         return TcpBvhSource(host, port, allow_remote=allow_remote)
+    if spec.startswith("udp-keypoints://"):
+        from robot_retarget.runtime.agnostic2d import load_keypoint_model
+        from robot_retarget.sources.keypoints.udp_keypoints import (
+            DEFAULT_KEYPOINT_PORT,
+            UdpKeypointSource,
+        )
+        from robot_retarget.sources.udp import check_bind_address
+
+        host, port = _host_port(spec, DEFAULT_KEYPOINT_PORT)
+        check_bind_address(host, allow_remote, "UDP bind")  # before loading anything
+        model = load_keypoint_model(keypoint_model)
+        return UdpKeypointSource(model, host, port, token=token, allow_remote=allow_remote)
     raise SourceError(f"unknown source {spec!r}; use {SOURCE_FORMS}")

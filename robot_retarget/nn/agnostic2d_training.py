@@ -1,0 +1,400 @@
+"""Training the character-agnostic 2D model (``train --model agnostic2d``).
+
+Data: the project's CMU clips (training subjects only; robot_retarget.nn.dataset), each batch
+a set of windows, each window performed by a randomly proportioned skeleton (per-bone scales,
+left/right symmetric) and seen by *two* random virtual cameras (azimuth 0–360°, elevation,
+distance, focal length: robot_retarget.keypoints.synthetic.CameraRange) with estimator-like
+noise, dropouts and hidden face points. Targets: the window's canonical local rotations, the
+root's turned into each camera's heading frame.
+
+Loss per view: rotation matrices (‖R − R*‖²) + global bone directions on the reference
+skeleton (what the optimizer follows) + the paper's triplet loss (margin 0.3) on the
+time-averaged motion code: the two views of a window closer than two different windows. Each
+batch is run causally (stream) or with whole-window static pooling (convert), at random.
+Optimiser: AMSGrad (the paper's). Checkpoints (``best.pt`` by validation bone-direction error on
+the validation subjects through fixed cameras, ``last.pt``) and their numpy runtimes
+(``best.npz``, ``last.npz``), ``log.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch.nn import functional as nnf
+
+from robot_retarget.array_types import FloatArray
+from robot_retarget.errors import ModelLoadError, RetargetError
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.keypoints.normalize import normalize_sequences
+from robot_retarget.keypoints.synthetic import CameraRange, EstimatorNoise, render_keypoints
+from robot_retarget.keypoints.virtual_camera import VirtualCamera, heading_quat
+from robot_retarget.nn.dataset import (
+    Augmentation,
+    Clip,
+    MotionDataset,
+    augment_offsets,
+    leg_length,
+    load_dataset,
+)
+from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
+from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime, save_agnostic2d
+from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, default_canonical_skeleton
+from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
+
+CHECKPOINT_FORMAT = "robot-retarget-keypoint-model"
+CHECKPOINT_VERSION = 1
+TRIPLET_MARGIN = 0.3  # the paper's α
+VALIDATION_ELEVATIONS_DEG = (0.0, 15.0, 30.0)
+_SKELETON_AUGMENTATION = Augmentation(global_scale=(0.85, 1.15), bone_scale=(0.85, 1.15))
+
+
+class KeypointTrainError(RetargetError):
+    """Training the keypoint model cannot go on as asked (names what to change)."""
+
+
+@dataclass(frozen=True)
+class KeypointTrainConfig:
+    data_dir: str
+    out_dir: str
+    steps: int = 6000
+    batch_size: int = 24
+    window_frames: int = 64
+    fps: float = 30.0
+    validation_subjects: tuple[str, ...] = ("06", "08", "12")
+    val_every: int = 500
+    seed: int = 0
+    lr: float = 1e-3
+    triplet_weight: float = 0.1
+    direction_weight: float = 1.0
+    model_config: dict[str, Any] = field(default_factory=dict)
+    max_frames: int | None = None
+    cache_dir: str | None = None
+
+
+@dataclass(frozen=True)
+class RenderedBatch:
+    """Features (N, T, 51) and target local rotations (N, T, 22, 4), float32 tensors."""
+
+    features: torch.Tensor
+    targets: torch.Tensor
+
+
+def _fk_window(
+    clip: Clip, start: int, frames: int, offsets: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    sl = slice(start, start + frames)
+    root = clip.root_pos[sl] * (leg_length(offsets) / leg_length(clip.offsets))
+    skel = Skeleton(clip.skeleton.names, clip.skeleton.parents, offsets)
+    return forward_kinematics(skel, clip.local_quats[sl], root)
+
+
+def render_window(
+    clip: Clip,
+    start: int,
+    frames: int,
+    offsets: FloatArray,
+    camera: VirtualCamera,
+    rng: np.random.Generator,
+    noise: EstimatorNoise,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Pixels (T, 17, 2), visibility (T, 17) and target rotations (T, 22, 4) of one view."""
+    pos, glob = _fk_window(clip, start, frames, offsets)
+    height = clip.height_m * leg_length(offsets) / leg_length(clip.offsets)
+    px, _conf, valid = render_keypoints(pos, glob, height, camera, rng, noise)
+    target = np.array(clip.local_quats[start : start + frames])
+    target[:, 0] = quat.mul(heading_quat(camera.azimuth_rad), target[:, 0])
+    return px, valid.astype(np.float64), target
+
+
+class TwoViewSampler:
+    """Batches of windows, each rendered through two random cameras (see the module docstring);
+    batch ``step`` is a pure function of (seed, step)."""
+
+    def __init__(
+        self,
+        dataset: MotionDataset,
+        *,
+        window_frames: int,
+        batch_size: int,
+        seed: int = 0,
+        cameras: CameraRange | None = None,
+        noise: EstimatorNoise | None = None,
+    ) -> None:
+        self.clips = [c for c in dataset.clips if c.num_frames >= window_frames]
+        if not self.clips:
+            raise KeypointTrainError(f"no training clip has {window_frames} frames; use --window")
+        self.window_frames = window_frames
+        self.batch_size = batch_size
+        self.seed = seed
+        self.cameras = cameras or CameraRange()
+        self.noise = noise or EstimatorNoise()
+        starts = np.array([c.num_frames - window_frames + 1 for c in self.clips], dtype=np.float64)
+        self._p = starts / starts.sum()
+
+    def sample(self, step: int) -> RenderedBatch:
+        """Views A (first half) and B (second half) of ``batch_size`` windows."""
+        rng = np.random.default_rng([self.seed, step])
+        views: list[list[tuple[FloatArray, FloatArray, FloatArray]]] = [[], []]
+        for _ in range(self.batch_size):
+            clip = self.clips[int(rng.choice(len(self.clips), p=self._p))]
+            start = int(rng.integers(0, clip.num_frames - self.window_frames + 1))
+            for view in views:
+                offsets = augment_offsets(clip.offsets, rng, _SKELETON_AUGMENTATION)
+                camera = self.cameras.sample(rng)
+                view.append(
+                    render_window(clip, start, self.window_frames, offsets, camera, rng, self.noise)
+                )
+        return _stack(views[0] + views[1])
+
+
+def _stack(items: Sequence[tuple[FloatArray, FloatArray, FloatArray]]) -> RenderedBatch:
+    px = np.stack([i[0] for i in items])
+    valid = np.stack([i[1] for i in items]) > 0.5
+    feats = normalize_sequences(px, valid)
+    targets = np.stack([i[2] for i in items])
+    return RenderedBatch(
+        torch.from_numpy(feats.astype(np.float32)), torch.from_numpy(targets.astype(np.float32))
+    )
+
+
+def validation_batch(
+    dataset: MotionDataset, window_frames: int, seed: int = 1234, windows_per_view: int = 16
+) -> RenderedBatch:
+    """Fixed windows of the validation subjects through fixed cameras at the validation
+    elevations (azimuths 22.5° + k·45°, 4 m, 1000 px) with estimator-like noise."""
+    rng = np.random.default_rng(seed)
+    clips = [c for c in dataset.clips if c.num_frames >= window_frames]
+    if not clips:
+        raise KeypointTrainError(f"no validation clip has {window_frames} frames")
+    items = []
+    for e in VALIDATION_ELEVATIONS_DEG:
+        for k in range(windows_per_view):
+            clip = clips[int(rng.integers(len(clips)))]
+            start = int(rng.integers(0, clip.num_frames - window_frames + 1))
+            cam = VirtualCamera(math.radians(22.5 + 45.0 * (k % 8)), math.radians(e), 4.0, 1000.0)
+            items.append(
+                render_window(clip, start, window_frames, clip.offsets, cam, rng, EstimatorNoise())
+            )
+    return _stack(items)
+
+
+# ------------------------------------------------------------------------------ losses
+_REF = default_canonical_skeleton()
+_CHILDREN = [j for j in range(1, len(CANONICAL_PARENTS))]
+_BONE_DIRS = torch.tensor(
+    _REF.offsets[1:] / np.maximum(np.linalg.norm(_REF.offsets[1:], axis=1, keepdims=True), 1e-9),
+    dtype=torch.float32,
+)
+_HAS_LENGTH = torch.tensor(np.linalg.norm(_REF.offsets[1:], axis=1) > 1e-6)
+
+
+def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
+    w, x, y, z = q.unbind(-1)
+    return torch.stack(
+        [
+            1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+            2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+            2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
+        ],
+        dim=-1,
+    ).reshape(*q.shape[:-1], 3, 3)  # fmt: skip
+
+
+def bone_directions(local: torch.Tensor) -> torch.Tensor:
+    """Local rotation matrices (…, 22, 3, 3) → global directions (…, 21, 3) of the reference
+    skeleton's bones (each joint's offset turned by its parent's global rotation)."""
+    glob: list[torch.Tensor] = []
+    for j, p in enumerate(CANONICAL_PARENTS):
+        glob.append(local[..., j, :, :] if p < 0 else glob[p] @ local[..., j, :, :])
+    parents = torch.stack([glob[CANONICAL_PARENTS[c]] for c in _CHILDREN], dim=-3)
+    return (parents @ _BONE_DIRS.to(local)[..., None])[..., 0]
+
+
+def direction_error_deg(pred: torch.Tensor, target: torch.Tensor) -> float:
+    """Mean angle (°) between predicted and target bone directions (bones with a length)."""
+    cos = (bone_directions(pred) * bone_directions(target)).sum(-1).clamp(-1.0, 1.0)
+    return float(torch.rad2deg(torch.acos(cos[..., _HAS_LENGTH])).mean())
+
+
+def losses(
+    model: Agnostic2D, batch: RenderedBatch, causal: bool, cfg: KeypointTrainConfig
+) -> dict[str, torch.Tensor]:
+    d6, motion = model(batch.features, causal)
+    pred = rotation_6d_to_matrix(d6)
+    target = quat_to_matrix(batch.targets)
+    rot = ((pred - target) ** 2).sum((-1, -2)).mean()
+    dirs = ((bone_directions(pred) - bone_directions(target)) ** 2).sum(-1)[..., _HAS_LENGTH].mean()
+    code = nnf.normalize(motion.mean(dim=-1), dim=-1)
+    half = code.shape[0] // 2
+    a, p = code[:half], code[half:]
+    n = torch.roll(p, 1, dims=0)
+    triplet = nnf.relu((a - p).norm(dim=-1) - (a - n).norm(dim=-1) + TRIPLET_MARGIN).mean()
+    total = rot + cfg.direction_weight * dirs + cfg.triplet_weight * triplet
+    return {"total": total, "rotation": rot, "direction": dirs, "triplet": triplet}
+
+
+# ------------------------------------------------------------------------------ files
+def save_keypoint_checkpoint(
+    path: Path, model: Agnostic2D, *, data_hash: str, metadata: dict[str, Any]
+) -> Path:
+    """``path`` (.pt: config + weights + provenance, plain data) and its runtime (.npz)."""
+    payload = {
+        "format": CHECKPOINT_FORMAT,
+        "version": CHECKPOINT_VERSION,
+        "model": model.name,
+        "config": model.config(),
+        "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
+        "data_hash": data_hash,
+        "metadata": metadata,
+    }
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, path)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    runtime = Agnostic2DRuntime(
+        model.export_weights(),
+        name=path.stem,
+        checkpoint_sha256=digest,
+        data_hash=data_hash,
+        metadata=metadata,
+    )
+    npz_tmp = path.with_name(f".{path.stem}.npz.tmp")
+    save_agnostic2d(runtime, npz_tmp)
+    os.replace(npz_tmp, path.with_suffix(".npz"))
+    return path
+
+
+def load_keypoint_checkpoint(path: str | Path) -> tuple[Agnostic2D, dict[str, Any]]:
+    """The model (eval mode) and the checkpoint's payload; ModelLoadError says what is wrong."""
+    source = Path(path)
+    try:
+        payload = torch.load(source, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise ModelLoadError("no such keypoint checkpoint", path=source) from None
+    except Exception as exc:  # torch raises many types for foreign files
+        raise ModelLoadError(f"not a readable checkpoint ({exc})", path=source) from exc
+    if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
+        raise ModelLoadError(f"not a {CHECKPOINT_FORMAT} checkpoint", path=source)
+    config = dict(payload["config"])
+    config["dilations"] = tuple(config.get("dilations", (1, 2, 4, 8)))
+    model = Agnostic2D(**config)
+    model.load_state_dict(payload["state_dict"])
+    model.eval()
+    return model, payload
+
+
+# ------------------------------------------------------------------------------ loop
+@dataclass(frozen=True)
+class KeypointProgress:
+    step: int
+    total_steps: int
+    losses: dict[str, float]
+    validation: dict[str, float] | None
+    elapsed_s: float
+
+
+def train_agnostic2d(
+    cfg: KeypointTrainConfig,
+    *,
+    progress: Callable[[KeypointProgress], None] | None = None,
+    command: str = "",
+) -> dict[str, Any]:
+    """Train, validate, checkpoint (see the module docstring); returns a JSON-able summary."""
+    out = Path(cfg.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    dataset = load_dataset(
+        cfg.data_dir, fps=cfg.fps, max_frames=cfg.max_frames, cache_dir=cfg.cache_dir
+    )
+    train_set, val_set = dataset.split(cfg.validation_subjects)
+    (out / "config.json").write_text(json.dumps({**asdict(cfg), "command": command}, indent=2))
+    torch.manual_seed(cfg.seed)
+    config = dict(cfg.model_config)
+    if "dilations" in config:
+        config["dilations"] = tuple(config["dilations"])
+    model = Agnostic2D(**config)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, amsgrad=True)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(
+        opt, T_max=max(cfg.steps, 1), eta_min=cfg.lr * 0.05
+    )
+    sampler = TwoViewSampler(
+        train_set, window_frames=cfg.window_frames, batch_size=cfg.batch_size, seed=cfg.seed
+    )
+    val_batch = validation_batch(val_set, cfg.window_frames)
+    meta_base = {
+        "train_subjects": list(train_set.subjects),
+        "validation_subjects": list(val_set.subjects),
+        "command": command,
+        "receptive_field_frames": model.receptive_field,
+        "fps": cfg.fps,
+    }
+    log_path = out / "log.csv"
+    with log_path.open("w", newline="") as fh:
+        csv.writer(fh).writerow(["step", "elapsed_s", "split", "metric", "value"])
+    best = math.inf
+    best_val: dict[str, float] = {}
+    t0 = time.monotonic()
+    rng = np.random.default_rng([cfg.seed, 99])
+    for step in range(1, cfg.steps + 1):
+        model.train()
+        batch = sampler.sample(step)
+        parts = losses(model, batch, causal=bool(rng.random() < 0.5), cfg=cfg)
+        opt.zero_grad()
+        parts["total"].backward()  # type: ignore[no-untyped-call]
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        opt.step()
+        sched.step()
+        scalars = {k: float(v) for k, v in parts.items()}
+        val: dict[str, float] | None = None
+        if step % cfg.val_every == 0 or step == cfg.steps:
+            val = _validate(model, val_batch)
+            meta = {**meta_base, "step": step, "validation": val}
+            save_keypoint_checkpoint(
+                out / "last.pt", model, data_hash=train_set.data_hash, metadata=meta
+            )
+            if val["direction_error_deg_causal"] < best:
+                best = val["direction_error_deg_causal"]
+                best_val = val
+                save_keypoint_checkpoint(
+                    out / "best.pt", model, data_hash=train_set.data_hash, metadata=meta
+                )
+        elapsed = time.monotonic() - t0
+        with log_path.open("a", newline="") as fh:
+            w = csv.writer(fh)
+            for k, v in scalars.items():
+                w.writerow([step, f"{elapsed:.1f}", "train", k, f"{v:.6g}"])
+            for k, v in (val or {}).items():
+                w.writerow([step, f"{elapsed:.1f}", "val", k, f"{v:.6g}"])
+        if progress is not None:
+            progress(KeypointProgress(step, cfg.steps, scalars, val, elapsed))
+    return {
+        "out": str(out),
+        "best": str(out / "best.pt"),
+        "last": str(out / "last.pt"),
+        "steps": cfg.steps,
+        "best_validation": best_val,
+        "data_hash": train_set.data_hash,
+    }
+
+
+def _validate(model: Agnostic2D, batch: RenderedBatch) -> dict[str, float]:
+    model.eval()
+    out: dict[str, float] = {}
+    with torch.no_grad():
+        target = quat_to_matrix(batch.targets)
+        for causal, tag in ((True, "causal"), (False, "clip")):
+            d6, _ = model(batch.features, causal)
+            out[f"direction_error_deg_{tag}"] = direction_error_deg(
+                rotation_6d_to_matrix(d6), target
+            )
+    return out

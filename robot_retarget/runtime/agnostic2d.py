@@ -1,0 +1,288 @@
+"""The character-agnostic 2D model as ``convert`` and ``stream`` run it: numpy only.
+
+Same arithmetic as the torch model (robot_retarget.nn.models.agnostic2d; tested to float32
+rounding): whole clips with :meth:`Agnostic2DRuntime.run_clip` (``causal=False`` pools the
+static encoders over the whole clip: ``convert``), and one frame at a time with
+:class:`Agnostic2DStep` (causal: ``stream``). Both take COCO-17 keypoints with their visibility
+and return the 22 canonical local rotations (w-x-y-z), the root's in the camera's heading frame.
+
+File format (``.npz``, written by ``train --model agnostic2d``): one array per weight under a
+dotted name (``motion.0.0`` = first motion layer's kernel, ``motion.0.1`` its bias) and
+``__meta__`` (JSON: ``format``, ``architecture`` = "agnostic2d", ``name``,
+``checkpoint_sha256``, ``data_hash``, ``metadata``), the conventions of
+:mod:`robot_retarget.runtime.model`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robot_retarget.array_types import BoolArray, FloatArray
+from robot_retarget.errors import ModelLoadError
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS
+from robot_retarget.keypoints.normalize import (
+    FEATURES_PER_FRAME,
+    KeypointNormalizer,
+    normalize_sequences,
+)
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
+
+ARCHITECTURE = "agnostic2d"
+FORMAT_VERSION = 1
+_META = "__meta__"
+_J = len(CANONICAL_JOINTS)
+_SLOPE = 0.2
+Conv = tuple[FloatArray, FloatArray]  # kernel (out, in, k), bias (out,)
+
+
+@dataclass(frozen=True)
+class Agnostic2DWeights:
+    """Convolution kernels and biases of every layer (see the torch model for the roles)."""
+
+    dilations: tuple[float, ...]
+    motion: tuple[Conv, ...]
+    skeleton: tuple[Conv, Conv, Conv]
+    view: tuple[Conv, Conv, Conv]
+    head: tuple[Conv, Conv]
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        out: dict[str, np.ndarray] = {"dilations": np.asarray(self.dilations, dtype=np.float64)}
+        for group in ("motion", "skeleton", "view", "head"):
+            for i, (w, b) in enumerate(getattr(self, group)):
+                out[f"{group}.{i}.0"] = np.asarray(w, dtype=np.float32)
+                out[f"{group}.{i}.1"] = np.asarray(b, dtype=np.float32)
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> Agnostic2DWeights:
+        def group(name: str) -> tuple[Conv, ...]:
+            out = []
+            i = 0
+            while f"{name}.{i}.0" in arrays:
+                w = np.asarray(arrays[f"{name}.{i}.0"], dtype=np.float64)
+                b = np.asarray(arrays[f"{name}.{i}.1"], dtype=np.float64)
+                out.append((w, b))
+                i += 1
+            return tuple(out)
+
+        if "dilations" not in arrays:
+            raise KeyError("dilations")
+        dil = tuple(float(d) for d in np.asarray(arrays["dilations"]).ravel())
+        motion, skel, view, head = group("motion"), group("skeleton"), group("view"), group("head")
+        if len(motion) != len(dil) or len(skel) != 3 or len(view) != 3 or len(head) != 2:
+            raise ValueError(
+                f"layer counts motion {len(motion)} (dilations {len(dil)}), skeleton "
+                f"{len(skel)}/3, view {len(view)}/3, head {len(head)}/2"
+            )
+        return cls(
+            dil,
+            motion,
+            (skel[0], skel[1], skel[2]),
+            (view[0], view[1], view[2]),
+            (head[0], head[1]),
+        )
+
+
+def _lrelu(x: FloatArray) -> FloatArray:
+    out: FloatArray = np.where(x > 0.0, x, _SLOPE * x)
+    return out
+
+
+def rotation_6d_to_quat(d6: FloatArray) -> FloatArray:
+    """(…, 6) → unit quaternions (…, 4), Gram–Schmidt as the torch model."""
+    a1, a2 = d6[..., :3], d6[..., 3:]
+    b1 = a1 / np.maximum(np.linalg.norm(a1, axis=-1, keepdims=True), 1e-12)
+    a2 = a2 - (b1 * a2).sum(-1, keepdims=True) * b1
+    b2 = a2 / np.maximum(np.linalg.norm(a2, axis=-1, keepdims=True), 1e-12)
+    b3 = np.cross(b1, b2)
+    return quat.normalize(quat.from_matrix(np.stack([b1, b2, b3], axis=-1)))
+
+
+def _pointwise(x: FloatArray, conv: Conv) -> FloatArray:
+    """1 × 1 convolution of (C, T) or (C,)."""
+    w, b = conv
+    if x.ndim == 1:
+        r: FloatArray = w[:, :, 0] @ x + b
+        return r
+    r = w[:, :, 0] @ x + b[:, None]
+    return r
+
+
+@dataclass(frozen=True)
+class Agnostic2DRuntime:
+    """A trained keypoint model ready to run (weights and provenance)."""
+
+    weights: Agnostic2DWeights
+    name: str = ARCHITECTURE
+    path: Path | None = None
+    checkpoint_sha256: str = ""
+    data_hash: str = ""
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def receptive_field(self) -> int:
+        k = self.weights.motion[0][0].shape[2]
+        return 1 + (k - 1) * int(sum(self.weights.dilations))
+
+    def run_features(self, features: FloatArray, *, causal: bool) -> FloatArray:
+        """Features (T, 51) → local rotations (T, 22, 4)."""
+        w = self.weights
+        x = np.asarray(features, dtype=np.float64).T  # (C, T)
+        t = x.shape[1]
+        h = x
+        for (kern, bias), d_f in zip(w.motion, w.dilations, strict=True):
+            d = int(d_f)
+            k = kern.shape[2]
+            hp = np.concatenate([np.zeros((h.shape[0], (k - 1) * d)), h], axis=1)
+            acc = np.repeat(bias[:, None], t, axis=1)
+            for i in range(k):
+                acc = acc + kern[:, :, i] @ hp[:, i * d : i * d + t]
+            h = _lrelu(acc)
+        codes = [h]
+        for enc in (w.skeleton, w.view):
+            s = _lrelu(_pointwise(_lrelu(_pointwise(x, enc[0])), enc[1]))
+            if causal:
+                pooled = np.cumsum(s, axis=1) / np.arange(1, t + 1)
+            else:
+                pooled = np.repeat(s.mean(axis=1, keepdims=True), t, axis=1)
+            codes.append(_pointwise(pooled, enc[2]))
+        z = np.concatenate(codes, axis=0)
+        out = _pointwise(_lrelu(_pointwise(z, w.head[0])), w.head[1]).T
+        return rotation_6d_to_quat(out.reshape(t, _J, 6))
+
+    def run_clip(self, xy: FloatArray, valid: BoolArray, *, causal: bool) -> FloatArray:
+        """COCO-17 pixels (T, 17, 2) and visibility (T, 17) → local rotations (T, 22, 4)."""
+        feats = normalize_sequences(np.asarray(xy)[None], np.asarray(valid, dtype=bool)[None])[0]
+        return self.run_features(feats, causal=causal)
+
+    def online(self) -> Agnostic2DStep:
+        return Agnostic2DStep(self.weights)
+
+
+class Agnostic2DStep:
+    """The causal model one frame at a time: ``step(xy (17, 2), valid (17,)) → (22, 4)``."""
+
+    def __init__(self, weights: Agnostic2DWeights) -> None:
+        self._w = weights
+        self._layers: list[tuple[FloatArray, FloatArray, int]] = []
+        for kern, bias in weights.motion:
+            out_c, in_c, k = kern.shape
+            self._layers.append((kern.reshape(out_c, in_c * k), bias, k))
+        self._dil = [int(d) for d in weights.dilations]
+        self._normalizer = KeypointNormalizer(1)
+        self.reset()
+
+    def reset(self) -> None:
+        self._normalizer.reset()
+        self._buffers = [
+            np.zeros((flat.shape[1] // k, (k - 1) * d + 1))
+            for (flat, _b, k), d in zip(self._layers, self._dil, strict=True)
+        ]
+        self._sums = [
+            np.zeros(self._w.skeleton[1][1].shape[0]),
+            np.zeros(self._w.view[1][1].shape[0]),
+        ]
+        self._count = 0
+
+    def step_features(self, features: FloatArray) -> FloatArray:
+        """One frame's features (51,) → local rotations (22, 4)."""
+        w = self._w
+        x = np.asarray(features, dtype=np.float64)
+        h = x
+        for (flat, bias, _k), d, buf in zip(self._layers, self._dil, self._buffers, strict=True):
+            buf[:, :-1] = buf[:, 1:]
+            buf[:, -1] = h
+            h = _lrelu(flat @ buf[:, ::d].ravel() + bias)
+        self._count += 1
+        codes = [h]
+        for enc, total in zip((w.skeleton, w.view), self._sums, strict=True):
+            total += _lrelu(_pointwise(_lrelu(_pointwise(x, enc[0])), enc[1]))
+            codes.append(_pointwise(total / self._count, enc[2]))
+        z = np.concatenate(codes)
+        out = _pointwise(_lrelu(_pointwise(z, w.head[0])), w.head[1])
+        return rotation_6d_to_quat(out.reshape(_J, 6))
+
+    def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
+        """COCO-17 pixels (17, 2) (NaN where invalid) and visibility (17,) → (22, 4)."""
+        v = np.asarray(valid, dtype=bool).reshape(1, NUM_KEYPOINTS)
+        feats = self._normalizer.step(np.asarray(xy, dtype=np.float64)[None], v)[0]
+        return self.step_features(feats)
+
+
+def save_agnostic2d(model: Agnostic2DRuntime, path: str | os.PathLike[str]) -> Path:
+    """Write a runtime ``.npz`` (see the module docstring)."""
+    out = Path(path)
+    arrays = model.weights.arrays()
+    meta = {
+        "format": FORMAT_VERSION,
+        "architecture": ARCHITECTURE,
+        "name": model.name,
+        "checkpoint_sha256": model.checkpoint_sha256,
+        "data_hash": model.data_hash,
+        "metadata": model.metadata,
+    }
+    arrays[_META] = np.array(json.dumps(meta, default=str))
+    with out.open("wb") as fh:
+        np.savez(fh, allow_pickle=False, **arrays)
+    return out
+
+
+def load_agnostic2d(path: str | os.PathLike[str]) -> Agnostic2DRuntime:
+    """Read a runtime ``.npz``; ModelLoadError names the file and what is wrong."""
+    p = Path(path)
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except FileNotFoundError:
+        raise ModelLoadError("keypoint model file not found", path=p) from None
+    except (OSError, ValueError) as exc:
+        raise ModelLoadError(f"not a runtime .npz file ({exc})", path=p) from None
+    if _META not in arrays:
+        raise ModelLoadError("runtime file has no __meta__ entry", path=p)
+    try:
+        meta = json.loads(str(arrays.pop(_META)))
+    except json.JSONDecodeError as exc:
+        raise ModelLoadError(f"runtime metadata is not JSON ({exc})", path=p) from None
+    if meta.get("architecture") != ARCHITECTURE or meta.get("format") != FORMAT_VERSION:
+        raise ModelLoadError(
+            f"not an {ARCHITECTURE} runtime of format {FORMAT_VERSION} (found "
+            f"{meta.get('architecture')!r}, format {meta.get('format')!r}); the keypoint model "
+            "is trained with train --model agnostic2d",
+            path=p,
+        )
+    try:
+        weights = Agnostic2DWeights.from_arrays(arrays)
+    except (KeyError, ValueError) as exc:
+        raise ModelLoadError(f"runtime weights do not fit {ARCHITECTURE} ({exc})", path=p) from None
+    model = Agnostic2DRuntime(
+        weights,
+        name=str(meta.get("name", p.stem)),
+        path=p,
+        checkpoint_sha256=str(meta.get("checkpoint_sha256", "")),
+        data_hash=str(meta.get("data_hash", "")),
+        metadata=dict(meta.get("metadata", {})),
+    )
+    try:  # wrong shapes fail here, at load, not in the live loop
+        model.online().step_features(np.zeros(FEATURES_PER_FRAME))
+    except (ValueError, IndexError) as exc:
+        raise ModelLoadError(f"runtime weights do not fit {ARCHITECTURE}: {exc}", path=p) from None
+    return model
+
+
+SHIPPED_KEYPOINT_MODEL = (
+    Path(__file__).resolve().parent.parent / "data" / "checkpoints" / "agnostic2d.npz"
+)
+
+
+def load_keypoint_model(name_or_path: str | os.PathLike[str] | None = None) -> Agnostic2DRuntime:
+    """The shipped keypoint model (None or "agnostic2d") or a runtime ``.npz`` by path."""
+    if name_or_path is None or str(name_or_path) == ARCHITECTURE:
+        return load_agnostic2d(SHIPPED_KEYPOINT_MODEL)
+    return load_agnostic2d(name_or_path)

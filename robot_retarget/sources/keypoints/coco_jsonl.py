@@ -1,0 +1,113 @@
+"""COCO-17 keypoints as JSON lines: one frame per line (RTMPose, YOLO-pose, ViTPose output).
+
+Points in COCO-17 order (robot_retarget.keypoints.coco17: nose, eyes, ears, shoulders,
+elbows, wrists, hips, knees, ankles; left before right), pixel coordinates. Each line:
+
+    {"frame": 0, "t": 0.0, "people": [{"keypoints": [[x, y], ... 17],
+                                        "keypoint_scores": [s, ... 17]}, ...]}
+
+Each person's points may be given as MMPose writes them (``keypoints`` as 17 [x, y] pairs and
+``keypoint_scores``; MMPose calls the list ``instances``, accepted too), as 17 [x, y, score]
+triples (YOLO-pose's ``keypoints.data``), or as the COCO annotation's flat list of 51 values.
+``frame`` and ``t`` are optional; the first line may carry ``"fps"`` (else 30 or the
+caller's). A score is a confidence in [0, 1]; a point below the threshold is missing.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robot_retarget.array_types import FloatArray
+from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS
+from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
+from robot_retarget.sources.keypoints.errors import KeypointFormatError
+from robot_retarget.sources.keypoints.frames import Person, PersonFrames
+
+
+class CocoPersonError(ValueError):
+    """A person entry that is not COCO-17 (message says what was found)."""
+
+
+def parse_coco_person(person: Any, min_confidence: float) -> Person:
+    """One person object (any of the module docstring's forms) → xy, confidence, valid."""
+    if not isinstance(person, dict) or "keypoints" not in person:
+        raise CocoPersonError("needs a 'keypoints' entry")
+    try:
+        kp = np.asarray(person["keypoints"], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise CocoPersonError("'keypoints' is not a numeric array") from None
+    scores: FloatArray
+    if kp.shape == (NUM_KEYPOINTS * 3,):
+        kp = kp.reshape(NUM_KEYPOINTS, 3)
+    if kp.shape == (NUM_KEYPOINTS, 3):
+        xy, scores = kp[:, :2].copy(), kp[:, 2].copy()
+    elif kp.shape == (NUM_KEYPOINTS, 2):
+        if "keypoint_scores" not in person:
+            raise CocoPersonError("17 [x, y] pairs need 'keypoint_scores'")
+        try:
+            scores = np.asarray(person["keypoint_scores"], dtype=np.float64)
+        except (TypeError, ValueError):
+            raise CocoPersonError("'keypoint_scores' is not a numeric array") from None
+        if scores.shape != (NUM_KEYPOINTS,):
+            raise CocoPersonError(f"'keypoint_scores' has shape {scores.shape}, expected (17,)")
+        xy = kp.copy()
+    else:
+        raise CocoPersonError(
+            f"'keypoints' has shape {kp.shape}; COCO-17 needs 17 [x, y] pairs (+ "
+            "'keypoint_scores'), 17 [x, y, score] triples or 51 values"
+        )
+    valid = np.isfinite(xy).all(axis=1) & np.isfinite(scores) & (scores >= min_confidence)
+    return xy, np.nan_to_num(scores), valid
+
+
+def people_of(obj: dict[str, Any]) -> Any:
+    return obj["people"] if "people" in obj else obj.get("instances")
+
+
+def read_coco_jsonl(
+    path: Path, *, fps: float | None = None, min_confidence: float = DEFAULT_MIN_CONFIDENCE
+) -> KeypointSequence:
+    """A COCO-17 JSON-lines file → the followed person's sequence; errors name file and frame
+    (the frame index is the line's position among non-empty lines, 0-based)."""
+    frames = PersonFrames()
+    rate = fps
+    index = 0
+    with path.open(encoding="utf-8") as fh:
+        for line in fh:
+            if not line.strip():
+                continue
+            try:
+                obj = json.loads(line)
+            except json.JSONDecodeError as exc:
+                raise KeypointFormatError(
+                    f"not a JSON object ({exc})", path=path, frame=index
+                ) from None
+            if not isinstance(obj, dict) or not isinstance(people_of(obj), list):
+                raise KeypointFormatError(
+                    "each line must be an object with a 'people' (or 'instances') list",
+                    path=path,
+                    frame=index,
+                )
+            if index == 0 and rate is None and "fps" in obj:
+                rate = obj["fps"]
+                if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0:
+                    raise KeypointFormatError(
+                        f"'fps' must be positive, got {rate!r}", path=path, frame=0
+                    )
+            people = []
+            for k, person in enumerate(people_of(obj)):
+                try:
+                    people.append(parse_coco_person(person, min_confidence))
+                except CocoPersonError as exc:
+                    raise KeypointFormatError(
+                        f"person {k}: {exc}", path=path, frame=index
+                    ) from None
+            frames.add(people)
+            index += 1
+    if index == 0:
+        raise KeypointFormatError("no frames (the file is empty)", path=path)
+    return frames.sequence(float(rate if rate is not None else 30.0), source=str(path))

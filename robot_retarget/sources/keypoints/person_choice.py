@@ -1,0 +1,65 @@
+"""Which person to follow when a pose estimator sees several.
+
+The rule: on the first frame with anyone in view, the person with the largest bounding box
+(of their visible keypoints) — usually the one nearest the camera. After that, the person whose
+box centre is nearest the followed person's last centre, if it lies within half that box's
+diagonal; if nobody does, the frame counts as nobody seen (every point missing, never another
+person's points). After ``reacquire_frames`` such frames in a row (default 15, 0.5 s at 30 fps)
+the largest person is chosen again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robot_retarget.array_types import BoolArray, FloatArray
+
+REACQUIRE_FRAMES = 15
+
+
+def _box(xy: FloatArray, valid: BoolArray) -> tuple[FloatArray, float, float] | None:
+    """Centre (2,), area and diagonal of the visible points' bounding box; None if < 2 seen."""
+    pts = xy[valid]
+    if len(pts) < 2:
+        return None
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    size = hi - lo
+    return 0.5 * (lo + hi), float(size[0] * size[1]), float(np.hypot(size[0], size[1]))
+
+
+class PersonTracker:
+    """Applies the rule above one frame at a time: ``choose(people) → index or None``."""
+
+    def __init__(self, reacquire_frames: int = REACQUIRE_FRAMES) -> None:
+        self.reacquire_frames = reacquire_frames
+        self.reset()
+
+    def reset(self) -> None:
+        self._centre: FloatArray | None = None
+        self._diagonal = 0.0
+        self._lost = 0
+
+    def choose(self, people: list[tuple[FloatArray, BoolArray]]) -> int | None:
+        """``people``: (xy (K, 2), valid (K,)) per detected person; the followed one's index."""
+        boxes = [_box(xy, v) for xy, v in people]
+        candidates = [(i, b) for i, b in enumerate(boxes) if b is not None]
+        if not candidates:
+            self._miss()
+            return None
+        if self._centre is None:
+            i, (centre, _area, diag) = max(candidates, key=lambda ib: ib[1][1])
+        else:
+            last = self._centre
+            i, (centre, _area, diag) = min(
+                candidates, key=lambda ib: float(np.linalg.norm(ib[1][0] - last))
+            )
+            if float(np.linalg.norm(centre - last)) > 0.5 * self._diagonal:
+                self._miss()
+                return None
+        self._centre, self._diagonal, self._lost = centre, max(diag, 1e-6), 0
+        return i
+
+    def _miss(self) -> None:
+        self._lost += 1
+        if self._lost >= self.reacquire_frames:
+            self._centre = None

@@ -1,0 +1,95 @@
+"""The live keypoint wire format: one JSON datagram per camera frame, COCO-17 people.
+
+UTF-8 JSON object, at most MAX_JSON_BYTES (a frame with 8 people fits easily)::
+
+    {"v": 1, "seq": 42, "t": 12.345, "kind": "coco17",
+     "people": [{"keypoints": [[x, y, score], ... 17]}, ...],   # pixels, COCO-17 order
+     "token": "secret"}                                          # only when the receiver wants one
+
+A person's points may also be 17 [x, y] pairs with ``keypoint_scores`` (MMPose) or 51 flat
+values (robot_retarget.sources.keypoints.coco_jsonl). ``people`` may be empty (nobody in view).
+``seq`` and ``t`` follow the 3D stream's rules (robot_retarget.sources.wire: both increase;
+``seq`` 0 starts a new stream). Scores below the receiver's threshold mark a point missing.
+:func:`encode_keypoints` builds a packet (senders, tests).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.sources.keypoints.coco_jsonl import CocoPersonError, parse_coco_person
+from robot_retarget.sources.keypoints.frames import Person
+from robot_retarget.sources.wire import WIRE_VERSION, WireError
+
+KIND_COCO17 = "coco17"
+MAX_JSON_BYTES = 32768
+
+
+@dataclass(frozen=True)
+class KeypointPacket:
+    seq: int
+    t_s: float
+    people: list[Person]
+    token: str
+
+
+def decode_keypoints(data: bytes, min_confidence: float) -> KeypointPacket:
+    """A datagram → KeypointPacket; raises WireError (with a SourceStats drop reason)."""
+    if len(data) > MAX_JSON_BYTES:
+        raise WireError(f"keypoint packet of {len(data)} bytes", reason="oversized")
+    try:
+        obj = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+        raise WireError("not a UTF-8 JSON document") from None
+    if not isinstance(obj, dict):
+        raise WireError("keypoint packet must be a JSON object")
+    if obj.get("v") != WIRE_VERSION or obj.get("kind") != KIND_COCO17:
+        raise WireError(f"expected v {WIRE_VERSION}, kind {KIND_COCO17!r}")
+    seq, t_s, token = obj.get("seq"), obj.get("t"), obj.get("token", "")
+    if isinstance(seq, bool) or not isinstance(seq, int) or seq < 0:
+        raise WireError("'seq' must be a non-negative integer")
+    if isinstance(t_s, bool) or not isinstance(t_s, (int, float)):
+        raise WireError("'t' must be a number (seconds)")
+    if not math.isfinite(t_s):
+        raise WireError("timestamp is not finite", reason="nan")
+    if not isinstance(token, str):
+        raise WireError("'token' must be a string")
+    people_obj = obj.get("people")
+    if not isinstance(people_obj, list):
+        raise WireError("'people' must be a list")
+    people = []
+    for person in people_obj:
+        try:
+            xy, conf, valid = parse_coco_person(person, min_confidence)
+        except CocoPersonError as exc:
+            raise WireError(f"person: {exc}") from None
+        if not np.isfinite(xy[valid]).all():
+            raise WireError("keypoints contain NaN or infinite values", reason="nan")
+        people.append((xy, conf, valid))
+    return KeypointPacket(seq, float(t_s), people, token)
+
+
+def encode_keypoints(seq: int, t_s: float, people: list[npt.ArrayLike], token: str = "") -> bytes:
+    """A packet: ``people`` as (17, 3) arrays of x, y, score (NaN coordinates → score 0)."""
+    rows = []
+    for p in people:
+        a = np.array(p, dtype=np.float64).reshape(17, 3)
+        missing = ~np.isfinite(a).all(axis=1)
+        a[missing] = 0.0
+        rows.append({"keypoints": a.tolist()})
+    obj: dict[str, Any] = {
+        "v": WIRE_VERSION,
+        "seq": int(seq),
+        "t": float(t_s),
+        "kind": KIND_COCO17,
+        "people": rows,
+    }
+    if token:
+        obj["token"] = token
+    return json.dumps(obj, separators=(",", ":")).encode("utf-8")

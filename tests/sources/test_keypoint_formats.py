@@ -1,0 +1,161 @@
+"""The keypoint file readers, on fixtures written from each format's published specification
+(tests/fixtures/keypoints: OpenPose doc/02_output.md BODY_25 and COCO-18 orders, MediaPipe's
+33-landmark pose model card, COCO-17 in MMPose / YOLO-pose / COCO-annotation forms), and
+malformed files whose errors name the file and the frame."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robot_retarget.keypoints.coco17 import Coco
+from robot_retarget.sources.keypoints import (
+    KeypointFormatError,
+    is_keypoint_input,
+    load_keypoints,
+)
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "keypoints"
+
+
+def test_openpose_body25_maps_each_point_from_its_body25_index() -> None:
+    seq = load_keypoints(FIXTURES / "openpose_body25")
+    assert seq.num_frames == 3
+    assert seq.fps == 30.0
+    # Fixture: BODY_25 point i of the main person at x = 600 + f + 4 i, y = 300 + 10 i.
+    body25 = {Coco.nose: 0, Coco.left_shoulder: 5, Coco.right_shoulder: 2, Coco.left_hip: 12,
+              Coco.right_hip: 9, Coco.left_ankle: 14, Coco.right_eye: 15,
+              Coco.left_ear: 18}  # fmt: skip
+    for coco, i in body25.items():
+        assert seq.xy[0, coco].tolist() == [600 + 4 * i, 300 + 10 * i]
+        assert seq.xy[2, coco, 0] == 602 + 4 * i
+    # BODY_25 point 4 (RWrist) has confidence 0.1 < 0.3: marked missing, not used.
+    assert not seq.valid[:, Coco.right_wrist].any()
+    assert np.isnan(seq.xy[:, Coco.right_wrist]).all()
+    assert seq.valid[:, Coco.left_wrist].all()
+
+
+def test_openpose_follows_the_larger_person() -> None:
+    seq = load_keypoints(FIXTURES / "openpose_body25")
+    # The small person (listed first) has x < 200; the larger one is followed in every frame.
+    assert np.nanmin(seq.xy[..., 0]) >= 600
+
+
+def test_openpose_coco18_layout() -> None:
+    seq = load_keypoints(FIXTURES / "openpose_coco18")
+    coco18 = {Coco.left_hip: 11, Coco.right_hip: 8, Coco.left_ankle: 13, Coco.right_eye: 14}
+    for coco, i in coco18.items():
+        assert seq.xy[0, coco].tolist() == [500 + 4 * i, 200 + 10 * i]
+    # COCO-18 point 16 (REar) written as 0, 0, 0: missing.
+    assert not seq.valid[:, Coco.right_ear].any()
+
+
+def test_mediapipe_landmarks_in_pixels() -> None:
+    seq = load_keypoints(FIXTURES / "mediapipe_pose.json")
+    assert seq.fps == 25.0
+    assert seq.num_frames == 3
+    mp = {Coco.nose: 0, Coco.left_eye: 2, Coco.right_ear: 8, Coco.left_shoulder: 11,
+          Coco.right_hip: 24, Coco.left_ankle: 27}  # fmt: skip
+    for coco, i in mp.items():
+        np.testing.assert_allclose(seq.xy[0, coco], [100 + 10 * i, 50 + 5 * i])
+    assert not seq.valid[:, Coco.right_wrist].any()  # visibility 0.2
+    assert not seq.valid[2].any()  # nobody in the third frame: all missing
+
+
+def test_coco17_jsonl_all_three_person_forms() -> None:
+    seq = load_keypoints(FIXTURES / "coco17.jsonl")
+    assert seq.num_frames == 3
+    assert seq.fps == 30.0
+    for f in range(3):
+        np.testing.assert_allclose(seq.xy[f, Coco.right_shoulder], [300 + 7 * 6 + f, 220])
+    assert not seq.valid[0, Coco.left_wrist]  # score 0.05 on the first line
+    assert seq.valid[1:, Coco.left_wrist].all()
+
+
+def test_detection_by_path(tmp_path: Path) -> None:
+    assert is_keypoint_input(FIXTURES / "openpose_body25")
+    assert is_keypoint_input(FIXTURES / "coco17.jsonl")
+    assert is_keypoint_input(FIXTURES / "mediapipe_pose.json")
+    (tmp_path / "a.bvh").write_text("HIERARCHY\n")
+    assert not is_keypoint_input(tmp_path)
+
+
+def _copy(name: str, tmp_path: Path) -> Path:
+    dst = tmp_path / name
+    if (FIXTURES / name).is_dir():
+        shutil.copytree(FIXTURES / name, dst)
+    else:
+        shutil.copy(FIXTURES / name, dst)
+    return dst
+
+
+def test_openpose_broken_frame_names_file_and_frame(tmp_path: Path) -> None:
+    folder = _copy("openpose_body25", tmp_path)
+    bad = folder / "video_000000000001_keypoints.json"
+    bad.write_text('{"version": 1.3, "people": [')
+    with pytest.raises(KeypointFormatError) as info:
+        load_keypoints(folder)
+    assert info.value.frame == 1
+    assert info.value.path == str(bad)
+    assert "frame 1" in str(info.value)
+    assert bad.name in str(info.value)
+
+
+def test_openpose_wrong_point_count(tmp_path: Path) -> None:
+    folder = _copy("openpose_coco18", tmp_path)
+    bad = folder / "video_000000000000_keypoints.json"
+    bad.write_text(json.dumps({"version": 1.3, "people": [{"pose_keypoints_2d": [1.0] * 60}]}))
+    with pytest.raises(KeypointFormatError, match=r"frame 0: person 0: .*60 values.*BODY_25"):
+        load_keypoints(folder)
+
+
+def test_mediapipe_without_image_size(tmp_path: Path) -> None:
+    path = _copy("mediapipe_pose.json", tmp_path)
+    doc = json.loads(path.read_text())
+    del doc["image_width"]
+    doc["frames"][1]["pose_landmarks"][0] = doc["frames"][1]["pose_landmarks"][0][:30]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(KeypointFormatError, match="not a keypoint input"):
+        load_keypoints(path)  # no image size: not recognised as MediaPipe at all
+    doc["image_width"] = 1000
+    path.write_text(json.dumps(doc))
+    with pytest.raises(KeypointFormatError, match=r"frame 1: person 0: expected 33 landmarks"):
+        load_keypoints(path)
+
+
+def test_mediapipe_bad_landmark(tmp_path: Path) -> None:
+    path = _copy("mediapipe_pose.json", tmp_path)
+    doc = json.loads(path.read_text())
+    doc["frames"][0]["pose_landmarks"][0][5] = {"x": "left"}
+    path.write_text(json.dumps(doc))
+    with pytest.raises(KeypointFormatError) as info:
+        load_keypoints(path)
+    assert info.value.frame == 0
+    assert "landmark 5" in str(info.value)
+
+
+def test_coco_jsonl_malformed_line(tmp_path: Path) -> None:
+    path = _copy("coco17.jsonl", tmp_path)
+    lines = path.read_text().splitlines()
+    obj = json.loads(lines[2])
+    obj["people"][0]["keypoints"] = obj["people"][0]["keypoints"][:48]
+    path.write_text("\n".join([lines[0], lines[1], json.dumps(obj)]) + "\n")
+    with pytest.raises(KeypointFormatError) as info:
+        load_keypoints(path)
+    assert info.value.frame == 2
+    assert path.name in str(info.value)
+    assert "shape (48,)" in str(info.value)
+    path.write_text(lines[0] + "\n{not json\n")
+    with pytest.raises(KeypointFormatError, match="frame 1: not a JSON object"):
+        load_keypoints(path)
+
+
+def test_pairs_without_scores_are_refused(tmp_path: Path) -> None:
+    path = tmp_path / "x.jsonl"
+    path.write_text(json.dumps({"people": [{"keypoints": [[1, 2]] * 17}]}) + "\n")
+    with pytest.raises(KeypointFormatError, match="keypoint_scores"):
+        load_keypoints(path)

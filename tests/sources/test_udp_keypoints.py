@@ -1,0 +1,92 @@
+"""Live COCO-17 keypoints over UDP: packets in, canonical frames out (through the keypoint
+model's causal step), with the 3D UDP source's rules: loopback by default, token, drops counted."""
+
+from __future__ import annotations
+
+import json
+import socket
+import time
+
+import numpy as np
+import pytest
+import torch
+
+from robot_retarget.errors import SourceError
+from robot_retarget.nn.models.agnostic2d import Agnostic2D
+from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
+from robot_retarget.sources import open_source
+from robot_retarget.sources.base import SourceFrame
+from robot_retarget.sources.keypoints.udp_keypoints import UdpKeypointSource
+from robot_retarget.sources.keypoints.wire import decode_keypoints, encode_keypoints
+
+
+@pytest.fixture(scope="module")
+def runtime() -> Agnostic2DRuntime:
+    torch.manual_seed(1)
+    return Agnostic2DRuntime(
+        Agnostic2D(channels=16, static_hidden=8, head_hidden=16).export_weights()
+    )
+
+
+def _person(x0: float, scale: float = 1.0) -> np.ndarray:
+    k = np.arange(17)
+    return np.stack([x0 + 5.0 * k * scale, 100.0 + 20.0 * k * scale, np.full(17, 0.9)], axis=1)
+
+
+def _wait(src: UdpKeypointSource, count: int, timeout_s: float = 3.0) -> list[SourceFrame]:
+    out: list[SourceFrame] = []
+    deadline = time.monotonic() + timeout_s
+    while len(out) < count and time.monotonic() < deadline:
+        out += src.poll(time.monotonic())
+        time.sleep(0.005)
+    return out
+
+
+def test_packets_over_loopback_become_canonical_frames(runtime: Agnostic2DRuntime) -> None:
+    src = UdpKeypointSource(runtime, "127.0.0.1", 0, token="tok")
+    with src, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+        for seq in range(1, 4):
+            people = [_person(50.0, 0.3), _person(400.0)]  # the larger one is followed
+            tx.sendto(encode_keypoints(seq, seq / 30, people, token="tok"), src.address)
+        frames = _wait(src, 3)
+    assert [f.seq for f in frames] == [1, 2, 3]
+    for f in frames:
+        assert f.local_quats.shape == (22, 4)
+        np.testing.assert_allclose(np.linalg.norm(f.local_quats, axis=-1), 1.0, atol=1e-9)
+        assert f.root_pos[1] > 0.5  # held at standing hip height
+    assert src.describe().startswith("udp-keypoints://127.0.0.1:")
+
+
+def test_bad_packets_are_counted_never_raised(runtime: Agnostic2DRuntime) -> None:
+    src = UdpKeypointSource(runtime, "127.0.0.1", 0, token="tok")
+    good = encode_keypoints(5, 1.0, [_person(0.0)], token="tok")
+    assert src.handle_packet(good, 0.0) is not None
+    short = json.loads(good)
+    short["people"][0]["keypoints"] = short["people"][0]["keypoints"][:16]
+    cases = {
+        "duplicate": good,
+        "out_of_order": encode_keypoints(4, 0.5, [_person(0.0)], token="tok"),
+        "auth": encode_keypoints(6, 1.1, [_person(0.0)], token="nope"),
+        "malformed": json.dumps(short).encode(),
+        "oversized": b"{" + b" " * 40000 + b"}",
+    }
+    for reason, data in cases.items():
+        before = src.stats.dropped[reason]
+        assert src.handle_packet(data, 0.0) is None
+        assert src.stats.dropped[reason] == before + 1, reason
+
+
+def test_nobody_in_view_is_a_frame_of_missing_points(runtime: Agnostic2DRuntime) -> None:
+    src = UdpKeypointSource(runtime, "127.0.0.1", 0)
+    assert src.handle_packet(encode_keypoints(1, 0.0, []), 0.0) is not None
+    low = _person(0.0)
+    low[:, 2] = 0.1  # below the confidence threshold
+    pkt = decode_keypoints(encode_keypoints(2, 0.1, [low]), 0.3)
+    assert not pkt.people[0][2].any()
+
+
+def test_remote_bind_needs_permission(runtime: Agnostic2DRuntime) -> None:
+    with pytest.raises(SourceError, match="not loopback"):
+        UdpKeypointSource(runtime, "0.0.0.0", 0)
+    with pytest.raises(SourceError, match="not loopback"):
+        open_source("udp-keypoints://0.0.0.0:9751")
