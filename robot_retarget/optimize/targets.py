@@ -1,16 +1,20 @@
 """Per-frame optimizer targets, and the adapter from canonical rotations to them.
 
 The optimizer works on what the evaluation scores: unit directions of the mapped bones (upper
-arm, forearm, thigh, shin, torso, …) in a **heading-free body frame** of the human — x forward,
-y left, z up, the heading taken from the hips' left–right axis — mapped into the robot root
-frame through its ``forward_axis`` / ``up_axis``. A bone's roll about itself comes in as a unit
+arm, forearm, thigh, shin, torso, …) in the **pelvis frame** of the retargeted pose — the
+columns forward, left, up of the root joint's (Hips') global rotation — mapped into the robot
+root frame through its ``forward_axis`` / ``up_axis``. The robot's base is that pelvis: the
+floating base (:mod:`robot_retarget.pipeline.floating_base`) turns and tilts with the same
+rotation, so every limb stands in the world where the pose put it (solving in a heading-free,
+upright frame instead and tilting the base afterwards put OP3's thighs 14° off in the world on
+subjects 02/05/13). A robot on its own feet gets the pelvis tilt from its hips, as the
+performer does. A bone's roll about itself comes in as a unit
 normal (the canonical rest normal carried by the bone's global rotation), optional end
 effectors as positions relative to the hips, scaled to the robot.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -97,18 +101,14 @@ def _unit_rows(v: FloatArray, fallback: FloatArray) -> FloatArray:
     return np.where(ok, v / np.where(ok, n, 1.0), fallback)
 
 
-def heading_frames(positions: FloatArray) -> FloatArray:
-    """(T, 3, 3) heading-free body frames of canonical global positions (T, 22, 3).
+_PELVIS_COLUMNS = [2, 0, 1]  # canonical Z (forward), X (left), Y (up)
 
-    Columns: forward, left, up in canonical coordinates (Y up). Left is the hips' right→left
-    axis made horizontal; forward = left × up.
-    """
-    left = positions[:, Joint.LeftUpLeg] - positions[:, Joint.RightUpLeg]
-    left = left * np.array([1.0, 0.0, 1.0])
-    left = _unit_rows(left, np.array([1.0, 0.0, 0.0]))
-    up = np.broadcast_to(np.array([0.0, 1.0, 0.0]), left.shape)
-    fwd = np.cross(left, up)
-    return np.stack([fwd, left, up], axis=-1)
+
+def pelvis_frames(hips_global: FloatArray) -> FloatArray:
+    """(T, 3, 3) body frames that tilt with the performer's pelvis: columns forward, left, up of
+    the Hips' global rotations (T, 4) in canonical coordinates (X left, Y up, Z forward)."""
+    r = quat.to_matrix(hips_global)
+    return np.asarray(r[..., _PELVIS_COLUMNS], dtype=np.float64)
 
 
 def targets_from_rotations(
@@ -157,7 +157,7 @@ def targets_from_globals(
     frames = pos.shape[0]
     pos = check_array("positions", pos, (frames, len(CANONICAL_JOINTS), 3))
     glob = check_array("global rotations", global_quats, (frames, len(CANONICAL_JOINTS), 4))
-    body = heading_frames(pos)  # (T, 3, 3) canonical
+    body = pelvis_frames(glob[:, 0])  # (T, 3, 3) canonical
     # M_t = F · B_tᵀ: canonical → robot root frame, per frame.
     m = np.einsum("ij,tkj->tik", problem.body_to_root, body)
     starts = [CANONICAL_JOINTS.index(b.canonical) for b in problem.bones]
@@ -219,10 +219,7 @@ class FrameTargetBuilder:
         starts = [CANONICAL_JOINTS.index(b.canonical) for b in bones]
         ends = [CANONICAL_JOINTS.index(b.canonical_end) for b in bones]
         nb = len(bones)
-        rows = [
-            chain[ends] - chain[starts],
-            (chain[Joint.LeftUpLeg] - chain[Joint.RightUpLeg])[None],
-        ]
+        rows = [chain[ends] - chain[starts]]
         self._ee = end_effectors and bool(problem.ee_frames)
         if self._ee:
             idx = [CANONICAL_JOINTS.index(name) for name, _ in problem.ee_frames]
@@ -234,6 +231,8 @@ class FrameTargetBuilder:
         self._rot_index = np.array(
             [parent[i] for i in range(1, j)] + [b.carrier_joint for b in bones], dtype=np.int64
         )
+        if self._rot_index[0] != 0:
+            raise SolveError("the canonical skeleton's joint 1 must hang from the root")
         normals_c = np.array([problem.canonical_to_root.T @ b.rest_normal for b in bones])
         self._vectors = np.concatenate([skeleton.offsets[1:], normals_c])[:, :, None]
         self._num_offsets = j - 1
@@ -257,15 +256,10 @@ class FrameTargetBuilder:
         mats = (sel[:, :, None] * sel[:, None, :]).reshape(-1, 16) @ self._rot + self._eye
         rotated = (mats.reshape(-1, 3, 3) @ self._vectors)[:, :, 0]
         no, nb = self._num_offsets, self._num_bones
-        sums = self._sums @ rotated[:no]  # bone directions, hip axis, end effectors
-        lx, lz = float(sums[nb, 0]), float(sums[nb, 2])
-        n = math.sqrt(lx * lx + lz * lz)
-        if n > 1e-9:
-            lx, lz = lx / n, lz / n
-        else:
-            lx, lz = 1.0, 0.0
-        # Heading-free body frame (forward, left, up) as rows, then canonical → robot root.
-        m = self._body_to_root @ np.array(((-lz, 0.0, lx), (lx, 0.0, lz), (0.0, 1.0, 0.0)))
+        sums = self._sums @ rotated[:no]  # bone directions, end effectors
+        # Pelvis frame (forward, left, up) as rows, then canonical → robot root. Row 0 of
+        # ``mats`` is the root's rotation (joint 1's parent, checked in __init__).
+        m = self._body_to_root @ mats[0].reshape(3, 3)[:, _PELVIS_COLUMNS].T
         vecs = np.concatenate([sums[:nb], rotated[no:]]) @ m.T
         norms = np.sqrt(np.einsum("ij,ij->i", vecs, vecs))[:, None]
         if norms.min() > 1e-9:
@@ -274,5 +268,5 @@ class FrameTargetBuilder:
             vecs = _unit_rows(vecs, self._fallback)
         ee = None
         if self._ee:
-            ee = self._hip_center + sums[nb + 1 :] @ m.T
+            ee = self._hip_center + sums[nb:] @ m.T
         return FrameTargets(directions=vecs[:nb], normals=vecs[nb:], ee_positions=ee)

@@ -110,9 +110,15 @@ def floating_base(
     *,
     contact_m: float = CONTACT_M,
     pin_feet: bool = True,
+    pelvis_quats: npt.ArrayLike | None = None,
 ) -> FloatingBase:
     """The base link's world pose for joint angles ``q`` (T, J) retargeted from ``motion`` (T
-    frames at the same rate)."""
+    frames at the same rate).
+
+    ``pelvis_quats`` (T, 4): the pelvis rotation (canonical axes) the joint angles were solved
+    relative to — the retargeting network's root output, which may correct the performer's —
+    default the performer's own Hips. The base turns and tilts with it, so the limbs stand in
+    the world as the optimizer placed them relative to the pelvis."""
     q_arr = np.asarray(q, dtype=np.float64)
     n = motion.num_frames
     if q_arr.shape != (n, config.num_joints):
@@ -127,7 +133,16 @@ def floating_base(
 
     # Orientation: root frame → canonical (config axes) → performer's pelvis → world.
     c = robot_to_canonical_rotation(config)
-    hips = quat.to_matrix(motion.local_quats[:, 0])  # (T, 3, 3) canonical
+    pelvis = motion.local_quats[:, 0] if pelvis_quats is None else pelvis_quats
+    pelvis_arr = np.asarray(pelvis, dtype=np.float64)
+    if pelvis_arr.shape != (n, 4) or not np.all(np.isfinite(pelvis_arr)):
+        raise FloatingBaseError(
+            f"pelvis_quats must be ({n}, 4) finite quaternions (one per motion frame), got "
+            f"{pelvis_arr.shape}",
+            expected=(n, 4),
+            got=pelvis_arr.shape,
+        )
+    hips = quat.to_matrix(quat.normalize(pelvis_arr))  # (T, 3, 3) canonical
     base_rot = HUMAN_TO_WORLD @ hips @ c  # (T, 3, 3)
 
     # Height targets: the performer's foot height above their ground, scaled.

@@ -62,6 +62,7 @@ from robot_retarget.evaluation.robot.segments import (
     RobotBodyModel,
     human_body_points,
 )
+from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.optimize.kinematic_limit import KinematicLimit
 from robot_retarget.optimize.position_ik import PositionIK
@@ -101,6 +102,9 @@ class PipelineRun:
     fps: float
     fallbacks: int
     ms_per_frame: float
+    # (T, 4) w-x-y-z: the base link's orientation in the Z-up world (the trajectory's floating
+    # base); None scores the robot standing upright, as the baselines are.
+    root_quat: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -178,7 +182,9 @@ def pipeline_runner(config: RobotConfig, model: str) -> PipelineFn:
             if frame_ms is not None
             else result.wall_s * 1e3 / traj.num_frames
         )
-        return PipelineRun(np.asarray(traj.q), traj.fps, result.fallbacks, ms)
+        return PipelineRun(
+            np.asarray(traj.q), traj.fps, result.fallbacks, ms, np.asarray(traj.root_quat)
+        )
 
     return run
 
@@ -194,6 +200,7 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
     from robot_retarget.hardware.safety import SafetyLayer
     from robot_retarget.hardware.types import JointCommand
     from robot_retarget.optimize import Retargeter, targets_from_globals
+    from robot_retarget.pipeline.floating_base import floating_base
     from robot_retarget.pipeline.recorder import RecordingBackend
 
     retargeter = Retargeter(config)
@@ -223,7 +230,8 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
             fallbacks += int(result.used_fallback)
         ms = (time.perf_counter() - t0) * 1e3 / m.num_frames
         safety.disconnect()
-        return PipelineRun(q, rate, fallbacks, ms)
+        base = floating_base(config, m, q)  # the performer's pelvis: the targets' frame
+        return PipelineRun(q, rate, fallbacks, ms, base.root_quat)
 
     return run
 
@@ -277,7 +285,9 @@ class RobotEvaluator:
         limit_q, limit_ms = self._limit(h, candidates)
         qs = {"pipeline": q_pipe[idx], "gmr": gmr.q[idx], "baseline": base.q[idx], "limit": limit_q}
         methods = {
-            "pipeline": self._method(h, q_pipe, idx, rate, run.fallbacks, run.ms_per_frame),
+            "pipeline": self._method(
+                h, q_pipe, idx, rate, run.fallbacks, run.ms_per_frame, run.root_quat
+            ),
             "gmr": self._method(h, gmr.q, idx, rate, 0, gmr_ms),
             "baseline": self._method(h, base.q, idx, rate, base.fallbacks, base_ms),
             "limit": self._method(h, limit_q, None, rate, 0, limit_ms),
@@ -292,9 +302,15 @@ class RobotEvaluator:
         rate: float,
         fallbacks: int,
         ms: float,
+        root_quat: FloatArray | None = None,
     ) -> MethodClip:
+        """Scores of joint angles ``q``; with ``root_quat`` (T, 4) the robot stands in the world
+        on that floating base (the pipeline's own output), else upright (the baselines)."""
         sampled = q if idx is None else q[idx]
-        robot = self.body.body_points(sampled)
+        rot = None
+        if root_quat is not None:
+            rot = quat.to_matrix(root_quat if idx is None else root_quat[idx])
+        robot = self.body.body_points(sampled, rot)
         stats = None if idx is None else trajectory_stats(self.config, q, rate)
         return MethodClip(
             segment_angles(human, robot), end_effector_errors(human, robot), stats, fallbacks, ms

@@ -47,6 +47,7 @@ SEGMENT_KIND: tuple[str, ...] = (*(k for k, _, _ in LIMB_KINDS for _ in SIDES), 
 END_EFFECTORS: tuple[str, ...] = ("left_hand", "right_hand", "left_foot", "right_foot")
 
 _CANONICAL_UP = np.array([0.0, 1.0, 0.0])
+_WORLD_UP = np.array([0.0, 0.0, 1.0])  # the robot world (REP-103) a floating base lives in
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -212,7 +213,8 @@ class RobotBodyModel:
         self, q: npt.ArrayLike, root_rotation: npt.ArrayLike | None = None
     ) -> BodyPoints:
         """Scored quantities of joint angles (T, J); ``root_rotation`` (3, 3) or (T, 3, 3) is the
-        root link's orientation in the world (default: standing, the root frame is the world)."""
+        root link's orientation in the Z-up world (a trajectory's floating base); default:
+        standing upright, the root frame is the world up to heading."""
         qa = np.asarray(q, dtype=np.float64)
         if qa.ndim != 2:
             raise ValueError(f"joint angles must be (T, J), got {qa.shape}")
@@ -226,7 +228,8 @@ class RobotBodyModel:
         hips = 0.5 * (hip_l + hip_r)
         shoulders = 0.5 * (sho_l + sho_r)
         vecs = np.concatenate([ends - starts, (shoulders - hips)[:, None]], axis=1)
-        axes = body_axes(hip_l, hip_r, self.up)
+        up = self.up if root_rotation is None else _WORLD_UP
+        axes = body_axes(hip_l, hip_r, up)
         arm, leg = self.frames.arm_length_m, self.frames.leg_length_m
         ee = np.stack(
             [
