@@ -1,7 +1,10 @@
 """``convert INPUT --robot ROBOT --out OUT``: human clip(s) → robot trajectory file(s).
 
 INPUT is a BVH file or a folder (every .bvh inside is converted, the folder structure kept
-under OUT). Each frame goes through the live path's step (network → optimizer → safety), see
+under OUT), or 2D keypoints from a camera pose estimator (an OpenPose JSON folder, a MediaPipe
+landmark .json, COCO-17 .jsonl: robot_retarget.sources.keypoints), lifted to 3D rotations by
+the keypoint model (robot_retarget.keypoints.lift) and converted as one clip.
+Each frame goes through the live path's step (network → optimizer → safety), see
 robot_retarget.pipeline.convert. Every output path is checked before any work starts
 (robot_retarget.cli.output_paths): an output is never an input (not even with --force), no two
 outputs share a path, existing outputs are kept unless --force, a file's folder must exist and
@@ -49,6 +52,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--bvh-out", type=Path, help="robot motion as BVH (a folder for folder input)"
     )
     parser.add_argument("--max-frames", type=int, help="convert only the first N frames")
+    parser.add_argument(
+        "--keypoint-model", help="2D keypoint input: the keypoint model's .npz (default: shipped)"
+    )
+    parser.add_argument(
+        "--keypoint-fps",
+        type=float,
+        help="2D keypoint input: the camera's frame rate (default: the file's, else 30)",
+    )
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     parser.add_argument(
         "--lead-in",
@@ -99,7 +110,7 @@ class ProgressBar:
 def _extra_path(base: Path | None, clip: Path, root: Path, suffix: str) -> Path | None:
     if base is None:
         return None
-    if root.is_dir():
+    if root.is_dir() and clip != root:  # a keypoint folder is one clip
         return base / clip.relative_to(root).with_suffix(suffix)
     return base
 
@@ -120,13 +131,15 @@ def _plan(args: argparse.Namespace) -> list[_Job]:
     from robot_retarget.pipeline.convert import output_paths
     from robot_retarget.render.preview import FORMATS as PREVIEW_FORMATS
     from robot_retarget.render.preview import check_preview_path
+    from robot_retarget.sources.keypoints import is_keypoint_input
 
     src: Path = args.input
     if not src.exists():
         raise MotionFormatError("no such file or folder", path=src)
-    folder = src.is_dir()
+    keypoints = is_keypoint_input(src)
+    folder = src.is_dir() and not keypoints
     suffix = "." + args.format if folder else args.out.suffix.lower()
-    pairs = output_paths(src, args.out, suffix)
+    pairs = [(src, args.out)] if keypoints else output_paths(src, args.out, suffix)
     if not pairs:
         raise MotionFormatError("no .bvh files in this folder", path=src)
     jobs = [
@@ -158,6 +171,7 @@ def _plan(args: argparse.Namespace) -> list[_Job]:
 
 def run(args: argparse.Namespace) -> int:
     from robot_retarget.cli.output_paths import StagedWrites
+    from robot_retarget.keypoints.lift import load_keypoint_motion
     from robot_retarget.motion.human_motion import load_motion
     from robot_retarget.pipeline.convert import convert_motion
     from robot_retarget.pipeline.defaults import default_model_name
@@ -167,11 +181,12 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.robot.loader import load_robot_config
     from robot_retarget.runtime.loader import load_runtime_model
     from robot_retarget.skeleton.canonical import default_canonical_skeleton
+    from robot_retarget.sources.keypoints import is_keypoint_input
 
     if args.fps is not None and not args.fps > 0:
         raise RetargetError(f"--fps must be positive, got {args.fps}")
     jobs = _plan(args)
-    folder = args.input.is_dir()
+    folder = args.input.is_dir() and not is_keypoint_input(args.input)
     config = load_robot_config(args.robot)
     model = load_runtime_model(args.model or default_model_name())
     print(f"robot {config.name}, model {model.name}, {len(jobs)} clip(s)", file=sys.stderr)
@@ -181,7 +196,15 @@ def run(args: argparse.Namespace) -> int:
     for k, job in enumerate(jobs):
         clip, out = job.clip, job.out
         try:
-            motion = load_motion(clip, max_frames=args.max_frames)
+            if is_keypoint_input(clip):
+                motion = load_keypoint_motion(
+                    clip,
+                    model=args.keypoint_model,
+                    fps=args.keypoint_fps,
+                    max_frames=args.max_frames,
+                )
+            else:
+                motion = load_motion(clip, max_frames=args.max_frames)
             label = f"[{k + 1}/{len(jobs)}] {clip.name}"
             result = convert_motion(
                 motion,

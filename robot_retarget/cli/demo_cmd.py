@@ -35,6 +35,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=float, default=12.0, help="clip length to use (≤ 12)")
     parser.add_argument("--no-preview", action="store_true", help="skip the GIF")
     parser.add_argument("--force", action="store_true", help="replace existing demo outputs")
+    parser.add_argument(
+        "--input",
+        choices=("3d", "2d"),
+        default="3d",
+        help="2d: the routine seen by a virtual camera as COCO-17 keypoints with estimator-like "
+        "noise, lifted by the keypoint model (robot_retarget.keypoints.demo_2d); outputs get _2d",
+    )
+    parser.add_argument("--keypoint-model", help="--input 2d: keypoint model .npz")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,10 +67,11 @@ def run(args: argparse.Namespace) -> int:
         raise RetargetError("--speed must be positive and --seconds in (0, 12]")
     t_start = time.perf_counter()
     out_dir: Path = args.out_dir
-    traj_path = out_dir / f"demo_{args.robot}.npz"
-    stream_path = out_dir / f"demo_{args.robot}_stream.npz"
-    bvh_path = out_dir / f"demo_{args.robot}.bvh"
-    gif_path = out_dir / "demo_preview.gif"
+    tag = "_2d" if args.input == "2d" else ""
+    traj_path = out_dir / f"demo_{args.robot}{tag}.npz"
+    stream_path = out_dir / f"demo_{args.robot}{tag}_stream.npz"
+    bvh_path = out_dir / f"demo_{args.robot}{tag}.bvh"
+    gif_path = out_dir / f"demo_preview{tag}.gif"
     # Every output checked before any work (robot_retarget.cli.output_paths): the folder is
     # created if missing and must be writable; nothing is replaced without --force.
     outputs = [traj_path, stream_path, bvh_path] + ([] if args.no_preview else [gif_path])
@@ -79,6 +88,13 @@ def run(args: argparse.Namespace) -> int:
     config = load_robot_config(args.robot)
     motion = demo_motion(fps=30.0)
     motion = motion.frames(0, min(motion.num_frames, round(args.seconds * 30.0) + 1))
+    truth = motion
+    if args.input == "2d":
+        from robot_retarget.keypoints.demo_2d import demo_lifted_motion
+        from robot_retarget.runtime.agnostic2d import load_keypoint_model
+
+        motion = demo_lifted_motion(truth, load_keypoint_model(args.keypoint_model))
+        say("2D input: the routine as COCO-17 keypoints from a virtual camera, lifted to 3D")
     model = load_runtime_model(args.model or default_model_name())
     say(
         f"demo: built-in clip ({motion.num_frames} frames, {motion.duration_s:.1f} s) → model "
@@ -156,6 +172,18 @@ def run(args: argparse.Namespace) -> int:
         f"servos reached the last command (error {final_err:.4f} rad)": final_err < 0.05,
         "torque off on every servo at the end": not any(torque),
     }
+    if args.input == "2d":
+        from robot_retarget.evaluation.keypoints_2d import Scorer
+
+        scorer = Scorer(config)
+        seen = dataclasses.replace(truth, fps=truth.fps * args.speed)
+        from_2d = scorer.score(seen, offline_q)[0]
+        from_3d = scorer.score(seen, convert_motion(seen, step).trajectory.q)[0]
+        still = scorer.score(seen, np.repeat(config.init_pose[None], len(offline_q), 0))[0]
+        checks[
+            f"2D input follows the routine: direction error {from_2d:.1f}° (the same clip as "
+            f"3D: {from_3d:.1f}°, standing still: {still:.1f}°)"
+        ] = from_2d < 0.6 * still
 
     # 4. preview
     if not args.no_preview:

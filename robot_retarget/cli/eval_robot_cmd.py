@@ -65,6 +65,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "for the model and copy-scaled, against clean input",
     )
     parser.add_argument(
+        "--input",
+        choices=("3d", "2d"),
+        default="3d",
+        help="2d: instead, each clip also seen by held-out virtual cameras as 2D keypoints with "
+        "estimator-like noise, lifted by the keypoint model, scored beside the 3D input per view "
+        "elevation (robot_retarget.evaluation.keypoints_2d)",
+    )
+    parser.add_argument(
+        "--keypoint-model", default=None, help="--input 2d: keypoint model .npz (default: shipped)"
+    )
+    parser.add_argument(
         "--cache-dir",
         default=None,
         help="kinematic-limit cache (default: the solver cache folder; 'none' to disable)",
@@ -112,6 +123,8 @@ def run(args: argparse.Namespace) -> int:
         model = args.model or default_model_name()
         if args.corrupt is not None:
             return _corrupted(config, clips, str(model), args)
+        if args.input == "2d":
+            return _two_d(config, clips, str(model), args)
         cache = (
             default_cache_dir() / "eval_robot" if args.cache_dir is None else Path(args.cache_dir)
         )
@@ -165,4 +178,35 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
         print(json.dumps([r.__dict__ for r in rows], indent=2))
     else:
         print(markdown(rows))
+    return 0
+
+
+def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int:
+    """``--input 2d``: the clips from 3D and from 2D keypoints per held-out view."""
+    from robot_retarget.evaluation.keypoints_2d import evaluate_2d, markdown_2d
+    from robot_retarget.runtime.agnostic2d import load_keypoint_model
+
+    report = evaluate_2d(
+        config,
+        clips,
+        model,
+        load_keypoint_model(args.keypoint_model),
+        max_frames=args.max_frames,
+        progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True),
+    )
+    if args.json:
+        rows = {
+            k: {
+                "direction_error_deg": r.direction_deg,
+                "limb_direction_error_deg": r.limb_deg,
+                "seconds": r.seconds,
+                "runs": r.runs,
+                "limit_violations": r.limit_violations,
+                "speed_violations": r.speed_violations,
+            }
+            for k, r in report.rows.items()
+        }
+        print(json.dumps({"robot": report.robot, "model": report.model, "rows": rows}, indent=2))
+    else:
+        print(markdown_2d(report))
     return 0

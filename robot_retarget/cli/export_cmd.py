@@ -23,10 +23,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from robot_retarget.errors import ModelLoadError, MotionFormatError
+    from robot_retarget.nn.agnostic2d_training import (
+        export_keypoint_checkpoint,
+        is_keypoint_checkpoint,
+    )
     from robot_retarget.nn.inference import load_model
     from robot_retarget.runtime.loader import runtime_of
     from robot_retarget.runtime.model import load_runtime, save_runtime
 
+    if is_keypoint_checkpoint(args.checkpoint):  # the 2D keypoint model (agnostic2d)
+        src = Path(args.checkpoint)
+        written = export_keypoint_checkpoint(src, args.out, force=args.force)
+        print(f"exported {src} (agnostic2d) → {written} ({written.stat().st_size} bytes)")
+        return 0
     loaded = load_model(args.checkpoint)
     runtime = runtime_of(loaded)
     if runtime is None:

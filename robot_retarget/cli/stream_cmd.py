@@ -41,7 +41,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--source",
         required=True,
-        help="replay:CLIP.bvh | udp://127.0.0.1:9750 | tcp-bvh://127.0.0.1:PORT",
+        help="replay:CLIP.bvh | udp://127.0.0.1:9750 | tcp-bvh://127.0.0.1:PORT | "
+        "udp-keypoints://127.0.0.1:9751 (COCO-17 2D keypoints, robot_retarget.sources.keypoints)",
+    )
+    parser.add_argument(
+        "--keypoint-model",
+        help="udp-keypoints: the 2D keypoint model's runtime .npz (default: the shipped one)",
     )
     parser.add_argument("--backend", choices=("sim", "dynamixel"), default="sim")
     add_port_argument(parser)
@@ -113,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
         speed=args.speed,
         token=args.token,
         allow_remote=args.allow_remote,
+        keypoint_model=args.keypoint_model,
     )
     model = load_runtime_model(args.model or default_model_name())
     step = RetargetStep(config, model, default_canonical_skeleton())
@@ -171,7 +177,7 @@ def _check_remote(args: argparse.Namespace) -> None:
             "--token works with udp:// sources only (a tcp-bvh stream carries no token); for "
             "a tcp-bvh server on another host pass --allow-remote --insecure-no-token"
         )
-    network = args.source.startswith(("udp://", "tcp-bvh://"))
+    network = args.source.startswith(("udp://", "tcp-bvh://", "udp-keypoints://"))
     if network and args.allow_remote and not args.token and not args.insecure_no_token:
         raise SourceError(
             "--allow-remote without --token would let anyone who can reach the port move the "

@@ -210,7 +210,16 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
 
     if args.resume:
         raise TrainArgumentError("--resume is not supported for agnostic2d; start a new run")
+    weights = _model_config(args.loss_weight, "--loss-weight")
+    unknown = sorted(set(weights) - {"triplet", "direction", "limb"})
+    if unknown:
+        raise TrainArgumentError(
+            f"--loss-weight {unknown}: agnostic2d's weights are triplet, direction and limb"
+        )
     config = KeypointTrainConfig(
+        triplet_weight=float(weights.get("triplet", 0.1)),
+        direction_weight=float(weights.get("direction", 1.0)),
+        limb_weight=float(weights.get("limb", 0.0)),
         data_dir=args.data,
         out_dir=args.out,
         steps=args.steps,

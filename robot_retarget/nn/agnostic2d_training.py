@@ -49,7 +49,7 @@ from robot_retarget.nn.dataset import (
 )
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime, save_agnostic2d
-from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, default_canonical_skeleton
+from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint, default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 
 CHECKPOINT_FORMAT = "robot-retarget-keypoint-model"
@@ -77,6 +77,7 @@ class KeypointTrainConfig:
     lr: float = 1e-3
     triplet_weight: float = 0.1
     direction_weight: float = 1.0
+    limb_weight: float = 0.0  # extra weight on the scored segments' bones (limbs, spine)
     model_config: dict[str, Any] = field(default_factory=dict)
     max_frames: int | None = None
     cache_dir: str | None = None
@@ -197,6 +198,15 @@ _BONE_DIRS = torch.tensor(
     dtype=torch.float32,
 )
 _HAS_LENGTH = torch.tensor(np.linalg.norm(_REF.offsets[1:], axis=1) > 1e-6)
+# Bones of the segments eval-robot scores (upper arms, forearms, thighs, shins; the spine for
+# the torso), as indices into bone_directions' output (child joint − 1).
+_SCORED_BONES = torch.tensor(
+    [
+        int(Joint[n]) - 1
+        for n in ("LeftForeArm", "LeftHand", "RightForeArm", "RightHand", "LeftLeg",
+                  "LeftFoot", "RightLeg", "RightFoot", "Spine1", "Spine2", "Neck")
+    ]
+)  # fmt: skip
 
 
 def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
@@ -234,14 +244,18 @@ def losses(
     pred = rotation_6d_to_matrix(d6)
     target = quat_to_matrix(batch.targets)
     rot = ((pred - target) ** 2).sum((-1, -2)).mean()
-    dirs = ((bone_directions(pred) - bone_directions(target)) ** 2).sum(-1)[..., _HAS_LENGTH].mean()
+    per_bone = ((bone_directions(pred) - bone_directions(target)) ** 2).sum(-1)
+    dirs = per_bone[..., _HAS_LENGTH].mean()
+    limbs = per_bone[..., _SCORED_BONES].mean()
     code = nnf.normalize(motion.mean(dim=-1), dim=-1)
     half = code.shape[0] // 2
     a, p = code[:half], code[half:]
     n = torch.roll(p, 1, dims=0)
     triplet = nnf.relu((a - p).norm(dim=-1) - (a - n).norm(dim=-1) + TRIPLET_MARGIN).mean()
-    total = rot + cfg.direction_weight * dirs + cfg.triplet_weight * triplet
-    return {"total": total, "rotation": rot, "direction": dirs, "triplet": triplet}
+    total = (
+        rot + cfg.direction_weight * dirs + cfg.limb_weight * limbs + cfg.triplet_weight * triplet
+    )
+    return {"total": total, "rotation": rot, "direction": dirs, "limbs": limbs, "triplet": triplet}
 
 
 # ------------------------------------------------------------------------------ files
@@ -354,7 +368,7 @@ def train_agnostic2d(
         torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
         opt.step()
         sched.step()
-        scalars = {k: float(v) for k, v in parts.items()}
+        scalars = {k: float(v.detach()) for k, v in parts.items()}
         val: dict[str, float] | None = None
         if step % cfg.val_every == 0 or step == cfg.steps:
             val = _validate(model, val_batch)
@@ -398,3 +412,41 @@ def _validate(model: Agnostic2D, batch: RenderedBatch) -> dict[str, float]:
                 rotation_6d_to_matrix(d6), target
             )
     return out
+
+
+def is_keypoint_checkpoint(path: str | Path) -> bool:
+    """Whether ``path`` is a .pt file written by :func:`save_keypoint_checkpoint`."""
+    p = Path(path)
+    if not (p.is_file() and p.suffix == ".pt"):
+        return False
+    try:
+        payload = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception:  # foreign or damaged files are for the other loaders to report
+        return False
+    return isinstance(payload, dict) and payload.get("format") == CHECKPOINT_FORMAT
+
+
+def export_keypoint_checkpoint(checkpoint: Path, out: Path | None, *, force: bool) -> Path:
+    """``export`` for the keypoint model: the checkpoint's runtime ``.npz`` (named after the
+    checkpoint's file, with its sha256), checked by loading it back."""
+    from robot_retarget.errors import MotionFormatError
+    from robot_retarget.runtime.agnostic2d import load_agnostic2d
+
+    target = out or checkpoint.with_suffix(".npz")
+    if target.suffix != ".npz":
+        raise MotionFormatError("the runtime file must end in .npz", path=target)
+    if target.exists() and not force:
+        raise MotionFormatError("already exists; pass --force to replace it", path=target)
+    model, payload = load_keypoint_checkpoint(checkpoint)
+    runtime = Agnostic2DRuntime(
+        model.export_weights(),
+        name=checkpoint.stem,
+        checkpoint_sha256=hashlib.sha256(checkpoint.read_bytes()).hexdigest(),
+        data_hash=str(payload.get("data_hash", "")),
+        metadata=dict(payload.get("metadata", {})),
+    )
+    tmp = target.with_name(f".{target.name}.tmp")
+    save_agnostic2d(runtime, tmp)
+    load_agnostic2d(tmp)  # refuse to leave a file that does not load back
+    os.replace(tmp, target)
+    return target

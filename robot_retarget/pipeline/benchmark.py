@@ -30,6 +30,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--positions", action="store_true", help="decode position packets (+ rotation solver)"
     )
+    parser.add_argument(
+        "--source",
+        choices=("3d", "2d"),
+        default="3d",
+        help="2d: from a UDP COCO-17 keypoint packet through the keypoint model "
+        "(robot_retarget.pipeline.benchmark_2d)",
+    )
+    parser.add_argument("--keypoint-model", help="--source 2d: keypoint model .npz")
 
 
 def run(args: argparse.Namespace) -> list[dict[str, Any]]:
@@ -44,6 +52,10 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     from robot_retarget.sources import wire
     from robot_retarget.sources.udp import UdpSource
 
+    if args.source == "2d":
+        from robot_retarget.pipeline.benchmark_2d import run_2d
+
+        return run_2d(args)
     if args.frames < 1 or args.warmup < 0:
         raise ValueError("--frames must be ≥ 1 and --warmup ≥ 0")
     config = load_robot_config(args.robot)

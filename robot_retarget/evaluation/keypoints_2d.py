@@ -1,0 +1,197 @@
+"""``eval-robot --input 2d``: the robot driven from a camera's 2D keypoints, scored against the
+performer's 3D ground truth beside the same clip fed as 3D.
+
+Per validation clip (subjects never trained on) and held-out view — elevations 0°, 15°, 30°
+at azimuths 45°, 135°, 225°, 315°, 5 m, 1100 px (fixed views; training draws azimuth,
+elevation −10…45°, distance and focal length at random, never these on these subjects):
+
+1. **3D** — the clip through the full pipeline (network → optimizer → safety), as ``convert``;
+2. **2D** — the clip resampled to a 30 fps camera, projected through the view with
+   estimator-like noise (robot_retarget.keypoints.synthetic: pixel jitter, dropouts, bursts,
+   hidden face points; its own random draws), lifted by the keypoint model — non-causally as
+   ``convert`` does (``clip``) and causally as ``stream`` does (``stream``) — and sent through
+   the same pipeline. The camera's azimuth is turned back on the root (a calibrated camera
+   knows it); the scores below do not depend on heading anyway.
+
+Scores as eval-robot's pipeline column (robot_retarget.evaluation.robot): per evaluation
+frame (10 fps) the angle between each of the 9 human and robot segment directions (upper arms,
+forearms, thighs, shins, torso) in the body frame, robot standing upright, averaged over
+segments and frames weighted by clip duration; joint-limit and joint-speed violations over
+every control frame.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from robot_retarget.array_types import FloatArray
+from robot_retarget.evaluation.robot.metrics import segment_angles, trajectory_stats
+from robot_retarget.evaluation.robot.runner import PipelineFn, pipeline_runner
+from robot_retarget.evaluation.robot.segments import RobotBodyModel, human_body_points
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.keypoints.lift import lift_keypoints
+from robot_retarget.keypoints.sequence import KeypointSequence
+from robot_retarget.keypoints.synthetic import EstimatorNoise, render_keypoints
+from robot_retarget.keypoints.virtual_camera import VirtualCamera, heading_quat
+from robot_retarget.motion.human_motion import HumanMotion, load_motion
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
+
+ELEVATIONS_DEG = (0.0, 15.0, 30.0)
+AZIMUTHS_DEG = (45.0, 135.0, 225.0, 315.0)
+CAMERA_FPS = 30.0
+INPUTS = ("3d", "2d clip", "2d stream")
+
+
+@dataclass
+class InputScore:
+    """Duration-weighted sums for one input kind (and view elevation)."""
+
+    direction_deg_weighted: float = 0.0
+    limb_deg_weighted: float = 0.0
+    seconds: float = 0.0
+    limit_violations: int = 0
+    speed_violations: int = 0
+    runs: int = 0
+
+    def add(
+        self, direction_deg: float, limb_deg: float, seconds: float, lim: int, spd: int
+    ) -> None:
+        self.direction_deg_weighted += direction_deg * seconds
+        self.limb_deg_weighted += limb_deg * seconds
+        self.seconds += seconds
+        self.limit_violations += lim
+        self.speed_violations += spd
+        self.runs += 1
+
+    @property
+    def direction_deg(self) -> float:
+        return self.direction_deg_weighted / max(self.seconds, 1e-12)
+
+    @property
+    def limb_deg(self) -> float:
+        return self.limb_deg_weighted / max(self.seconds, 1e-12)
+
+
+@dataclass
+class Eval2DReport:
+    robot: str
+    model: str
+    keypoint_model: str
+    clips: int
+    rows: dict[str, InputScore] = field(default_factory=dict)  # "3d" | "2d clip @ 15°" …
+
+
+def _camera(elevation_deg: float, azimuth_deg: float) -> VirtualCamera:
+    return VirtualCamera(math.radians(azimuth_deg), math.radians(elevation_deg), 5.0, 1100.0)
+
+
+def keypoints_of(
+    motion: HumanMotion, camera: VirtualCamera, rng: np.random.Generator, noise: EstimatorNoise
+) -> KeypointSequence:
+    """``motion`` seen by ``camera`` at 30 fps as an estimator would report it."""
+    cam_motion = motion.resample(CAMERA_FPS)
+    px, conf, valid = render_keypoints(
+        cam_motion.positions(), cam_motion.global_quats(), motion.height_m, camera, rng, noise
+    )
+    return KeypointSequence(px, conf, valid, CAMERA_FPS, source=str(motion.source_path))
+
+
+def world_heading(lifted: HumanMotion, camera: VirtualCamera) -> HumanMotion:
+    """The lifted motion with the camera's azimuth turned back on its root rotation."""
+    q = np.array(lifted.local_quats)
+    q[:, 0] = quat.mul(quat.conjugate(heading_quat(camera.azimuth_rad)), q[:, 0])
+    return HumanMotion(lifted.skeleton, q, lifted.root_pos, lifted.fps, lifted.source_path)
+
+
+class Scorer:
+    """Direction errors and violations of a pipeline run against a ground-truth motion."""
+
+    def __init__(self, config: RobotConfig, eval_fps: float = 10.0) -> None:
+        self.config = config
+        self.body = RobotBodyModel(config)
+        self.rate = float(config.control_rate_hz)
+        self.stride = max(1, round(self.rate / eval_fps))
+
+    def score(self, truth: HumanMotion, q: FloatArray) -> tuple[float, float, float, int, int]:
+        """(direction °, limb direction °, seconds, limit violations, speed violations)."""
+        human = truth.resample(self.rate)
+        pos = human.positions()
+        n = min(pos.shape[0], q.shape[0])
+        idx = np.arange(0, n, self.stride)
+        ang = np.degrees(segment_angles(human_body_points(pos[idx]), self.body.body_points(q[idx])))
+        stats = trajectory_stats(self.config, q[:n], self.rate)
+        return (
+            float(ang.mean()),
+            float(ang[:, :8].mean()),
+            n / self.rate,
+            stats.limit_violations,
+            stats.speed_violations,
+        )
+
+
+def evaluate_2d(
+    config: RobotConfig,
+    clips: Sequence[tuple[str, Path]],
+    model: str,
+    keypoint_model: Agnostic2DRuntime,
+    *,
+    max_frames: int | None = None,
+    noise: EstimatorNoise | None = None,
+    seed: int = 0,
+    pipeline: PipelineFn | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Eval2DReport:
+    """Score every clip from 3D and from 2D through every held-out view (module docstring)."""
+    run = pipeline or pipeline_runner(config, model)
+    scorer = Scorer(config)
+    noise = noise or EstimatorNoise()
+    report = Eval2DReport(config.name, model, keypoint_model.name, len(clips))
+    rows = report.rows
+    for k, (name, path) in enumerate(clips):
+        truth = load_motion(path, max_frames=max_frames)
+        rows.setdefault("3d", InputScore()).add(*scorer.score(truth, run(truth).q))
+        for elevation in ELEVATIONS_DEG:
+            for azimuth in AZIMUTHS_DEG:
+                cam = _camera(elevation, azimuth)
+                rng = np.random.default_rng([seed, k, int(elevation), int(azimuth)])
+                seq = keypoints_of(truth, cam, rng, noise)
+                for causal, label in ((False, "2d clip"), (True, "2d stream")):
+                    lifted = world_heading(lift_keypoints(seq, keypoint_model, causal=causal), cam)
+                    scores = scorer.score(truth, run(lifted).q)
+                    rows.setdefault(f"{label} @ {elevation:g}°", InputScore()).add(*scores)
+                    rows.setdefault(label, InputScore()).add(*scores)
+        if progress is not None:
+            progress(name)
+    return report
+
+
+def markdown_2d(report: Eval2DReport) -> str:
+    """The report as a markdown table (rows: input, then per view elevation)."""
+    base = report.rows["3d"].direction_deg
+    lines = [
+        f"eval-robot --input 2d: {report.robot}, model {report.model}, keypoint model "
+        f"{report.keypoint_model}, {report.clips} clips × {len(ELEVATIONS_DEG) * len(AZIMUTHS_DEG)}"
+        " views",
+        "",
+        "| input | direction error, mean (°) | vs 3D (°) | limb direction error (°) | "
+        "limit violations | speed violations |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    order = ["3d"] + [
+        key
+        for label in ("2d clip", "2d stream")
+        for key in (label, *(f"{label} @ {e:g}°" for e in ELEVATIONS_DEG))
+    ]
+    for key in order:
+        r = report.rows[key]
+        lines.append(
+            f"| {key} | {r.direction_deg:.2f} | {r.direction_deg - base:+.2f} | "
+            f"{r.limb_deg:.2f} | {r.limit_violations} | {r.speed_violations} |"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,71 @@
+"""``convert`` from 2D keypoints: a COCO-17 file made from a known 3D motion converts within the
+limits and follows the performer; an OpenPose folder converts; a broken file is reported."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from robot_retarget.cli import convert_cmd
+from robot_retarget.evaluation.keypoints_2d import Scorer, keypoints_of
+from robot_retarget.keypoints.synthetic import EstimatorNoise
+from robot_retarget.keypoints.virtual_camera import VirtualCamera
+from robot_retarget.motion.synthetic import demo_motion
+from robot_retarget.motion.trajectory import RobotTrajectory
+from robot_retarget.pipeline.convert import check_limits
+from robot_retarget.robot.loader import load_robot_config
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "keypoints"
+TIME_LIMIT_S = 180
+
+
+def _run(*argv: str) -> int:
+    parser = argparse.ArgumentParser()
+    convert_cmd.configure(parser)
+    return convert_cmd.run(parser.parse_args(list(argv)))
+
+
+def _write_jsonl(path: Path, px: np.ndarray, conf: np.ndarray) -> None:
+    with path.open("w") as fh:
+        for t in range(px.shape[0]):
+            kp = np.concatenate([np.nan_to_num(px[t]), conf[t][:, None]], axis=1)
+            fh.write(json.dumps({"frame": t, "people": [{"keypoints": kp.tolist()}]}) + "\n")
+
+
+def test_projected_demo_motion_converts_and_follows_the_performer(tmp_path: Path) -> None:
+    truth = demo_motion(fps=30.0).frames(0, 150)
+    camera = VirtualCamera(math.radians(30.0), math.radians(10.0), 4.0, 1000.0)
+    seq = keypoints_of(truth, camera, np.random.default_rng(0), EstimatorNoise())
+    src = tmp_path / "performer.jsonl"
+    _write_jsonl(src, seq.xy, seq.confidence)
+    out = tmp_path / "performer_op3.npz"
+    assert _run(str(src), "--robot", "op3", "--out", str(out)) == 0
+    traj = RobotTrajectory.read(out)
+    config = load_robot_config("op3")
+    assert check_limits(config, traj.q, 1.0 / traj.fps).ok
+    scorer = Scorer(config)
+    followed = scorer.score(truth, np.asarray(traj.q))[0]
+    held = scorer.score(truth, np.repeat(np.asarray(config.init_pose)[None], len(traj.q), 0))[0]
+    # The robot follows the performer seen only in 2D far better than standing still.
+    assert followed < 0.6 * held, (followed, held)
+
+
+def test_openpose_folder_converts(tmp_path: Path) -> None:
+    out = tmp_path / "op.npz"
+    assert _run(str(FIXTURES / "openpose_body25"), "--robot", "op3", "--out", str(out)) == 0
+    traj = RobotTrajectory.read(out)
+    assert check_limits(load_robot_config("op3"), traj.q, 1.0 / traj.fps).ok
+
+
+def test_broken_keypoint_file_is_reported(tmp_path: Path, capsys: object) -> None:
+    src = tmp_path / "broken.jsonl"
+    src.write_text('{"people": []}\n{"people": [{"keypoints": [1, 2, 3]}]}\n')
+    assert _run(str(src), "--robot", "op3", "--out", str(tmp_path / "b.npz")) == 1
+    err = capsys.readouterr().err  # type: ignore[attr-defined]
+    assert "broken.jsonl" in err
+    assert "frame 1" in err
+    assert not (tmp_path / "b.npz").exists()

@@ -1,0 +1,64 @@
+"""``eval-robot --input 2d`` on a fixture clip: every input row, every view elevation, within
+the limits; and the scorer itself (a robot copying the truth scores better than one standing)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from robot_retarget.evaluation.keypoints_2d import (
+    ELEVATIONS_DEG,
+    Scorer,
+    evaluate_2d,
+    keypoints_of,
+    markdown_2d,
+    world_heading,
+)
+from robot_retarget.evaluation.robot.runner import oracle_runner
+from robot_retarget.keypoints.lift import lift_keypoints
+from robot_retarget.keypoints.synthetic import CLEAN
+from robot_retarget.keypoints.virtual_camera import VirtualCamera
+from robot_retarget.motion.human_motion import load_motion
+from robot_retarget.robot.loader import load_robot_config
+from robot_retarget.runtime.agnostic2d import load_keypoint_model
+
+CLIP = Path(__file__).resolve().parents[1] / "fixtures" / "motion" / "tiny_walk.bvh"
+TIME_LIMIT_S = 300
+
+
+def test_every_row_and_elevation_within_limits() -> None:
+    config = load_robot_config("op3")
+    report = evaluate_2d(config, [("tiny_walk", CLIP)], "copy-scaled", load_keypoint_model())
+    for label in ("2d clip", "2d stream"):
+        for e in ELEVATIONS_DEG:
+            row = report.rows[f"{label} @ {e:g}°"]
+            assert row.runs == 4  # four azimuths per elevation
+            assert row.limit_violations == 0
+            assert row.speed_violations == 0
+            assert np.isfinite(row.direction_deg)
+    assert report.rows["3d"].runs == 1
+    table = markdown_2d(report)
+    assert "| 2d stream @ 30° |" in table
+
+
+def test_world_heading_undoes_the_camera_azimuth() -> None:
+    motion = load_motion(CLIP)
+    seq_cam = VirtualCamera(1.0, 0.0, 4.0, 1000.0)
+    seq = keypoints_of(motion, seq_cam, np.random.default_rng(0), CLEAN)
+    lifted = lift_keypoints(seq, load_keypoint_model())
+    turned = world_heading(lifted, seq_cam)
+    np.testing.assert_allclose(turned.local_quats[:, 1:], lifted.local_quats[:, 1:])
+    assert not np.allclose(turned.local_quats[:, 0], lifted.local_quats[:, 0])
+
+
+def test_scorer_prefers_the_truth_to_standing_still() -> None:
+    config = load_robot_config("op3")
+    scorer = Scorer(config)
+    truth = load_motion(CLIP)
+    q = oracle_runner(config)(truth).q
+    good = scorer.score(truth, q)
+    still = scorer.score(truth, np.repeat(np.asarray(config.init_pose)[None], len(q), 0))
+    assert good[0] < still[0]
+    assert good[3] == 0
+    assert good[4] == 0

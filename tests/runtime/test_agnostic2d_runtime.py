@@ -1,0 +1,85 @@
+"""The keypoint model's numpy runtime equals the torch model (whole clips, both poolings, and
+the causal one-frame step), and its file round-trips with clear errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from robot_retarget.errors import ModelLoadError
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
+from robot_retarget.runtime.agnostic2d import (
+    Agnostic2DRuntime,
+    load_agnostic2d,
+    load_keypoint_model,
+    save_agnostic2d,
+)
+
+
+@pytest.fixture(scope="module")
+def model() -> Agnostic2D:
+    torch.manual_seed(0)
+    return Agnostic2D(channels=24, static_hidden=16, head_hidden=32).eval()
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.max(2 * np.arccos(np.clip(np.abs((a * b).sum(-1)), 0, 1))))
+
+
+@pytest.mark.parametrize("causal", [True, False])
+def test_runtime_equals_torch(model: Agnostic2D, causal: bool) -> None:
+    x = torch.randn(1, 50, 51)
+    with torch.no_grad():
+        ref = quat.from_matrix(rotation_6d_to_matrix(model(x, causal)[0])[0].double().numpy())
+    rt = Agnostic2DRuntime(model.export_weights())
+    assert _angle(rt.run_features(x[0].double().numpy(), causal=causal), ref) < 1e-4
+    if causal:
+        step = rt.online()
+        online = np.stack([step.step_features(f) for f in x[0].double().numpy()])
+        assert _angle(online, ref) < 1e-4
+
+
+def test_file_round_trip_and_errors(model: Agnostic2D, tmp_path: Path) -> None:
+    rt = Agnostic2DRuntime(model.export_weights(), data_hash="abc")
+    path = save_agnostic2d(rt, tmp_path / "m.npz")
+    back = load_agnostic2d(path)
+    assert back.data_hash == "abc"
+    assert back.receptive_field == model.receptive_field
+    feats = np.random.default_rng(0).normal(size=(20, 51))
+    assert _angle(back.run_features(feats, causal=True), rt.run_features(feats, causal=True)) < 1e-5
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["head.1.0"] = arrays["head.1.0"][:5]
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(ModelLoadError, match="do not fit agnostic2d"):
+        load_agnostic2d(tmp_path / "bad.npz")
+    with pytest.raises(ModelLoadError, match="not found"):
+        load_agnostic2d(tmp_path / "missing.npz")
+
+
+def test_shipped_keypoint_model_loads() -> None:
+    rt = load_keypoint_model()
+    assert rt.metadata.get("validation_subjects")
+    assert rt.checkpoint_sha256
+    step = rt.online()
+    q = step.step(np.full((17, 2), np.nan), np.zeros(17, dtype=bool))
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
+
+
+def test_shipped_runtime_is_the_shipped_checkpoint(tmp_path: Path) -> None:
+    """agnostic2d.npz is ``export agnostic2d.pt``: the same weights and the checkpoint's hash."""
+    import hashlib
+
+    from robot_retarget.nn.agnostic2d_training import export_keypoint_checkpoint
+    from robot_retarget.runtime.agnostic2d import SHIPPED_KEYPOINT_MODEL
+
+    pt = SHIPPED_KEYPOINT_MODEL.with_suffix(".pt")
+    fresh = load_agnostic2d(export_keypoint_checkpoint(pt, tmp_path / "a.npz", force=False))
+    shipped = load_keypoint_model()
+    assert shipped.checkpoint_sha256 == hashlib.sha256(pt.read_bytes()).hexdigest()
+    for name, a in fresh.weights.arrays().items():
+        np.testing.assert_array_equal(a, shipped.weights.arrays()[name], err_msg=name)
