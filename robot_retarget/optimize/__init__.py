@@ -3,7 +3,7 @@
 Only this package imports casadi. Entry point: :class:`Retargeter` — ``solve`` (online, one
 frame, warm-started) and ``solve_clip`` (offline, sliding windows solved jointly); targets come
 from :func:`targets_from_rotations` (canonical local rotations → bone directions / normals /
-end effectors in a heading-free body frame) or are built directly as :class:`FrameTargets`.
+end effectors in the trunk frame) or are built directly as :class:`FrameTargets`.
 
 Formulation (per frame, see :mod:`.formulation`): a sum of named cost terms (:mod:`.terms`,
 assembled by :mod:`.objective`, parameters laid out once by :mod:`.parameter_layout`) — unit

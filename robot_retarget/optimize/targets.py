@@ -1,14 +1,15 @@
 """Per-frame optimizer targets, and the adapter from canonical rotations to them.
 
 The optimizer works on what the evaluation scores: unit directions of the mapped bones (upper
-arm, forearm, thigh, shin, torso, …) in the **pelvis frame** of the retargeted pose — the
-columns forward, left, up of the root joint's (Hips') global rotation — mapped into the robot
-root frame through its ``forward_axis`` / ``up_axis``. The robot's base is that pelvis: the
-floating base (:mod:`robot_retarget.pipeline.floating_base`) turns and tilts with the same
-rotation, so every limb stands in the world where the pose put it (solving in a heading-free,
-upright frame instead and tilting the base afterwards put OP3's thighs 14° off in the world on
-subjects 02/05/13). A robot on its own feet gets the pelvis tilt from its hips, as the
-performer does. A bone's roll about itself comes in as a unit
+arm, forearm, thigh, shin, torso, …) in the **trunk frame** of the retargeted pose
+(:mod:`robot_retarget.skeleton.trunk`: up from the hip midpoint to the shoulder midpoint, left
+along the hips) mapped into the robot root frame through its ``forward_axis`` / ``up_axis``.
+The robot's trunk is that frame: the floating base
+(:mod:`robot_retarget.pipeline.floating_base`) turns and tilts with it, so every limb stands in
+the world where the pose put it. (Solving in an upright, heading-free frame and tilting the base
+afterwards by the pelvis put OP3's thighs 14° off in the world on subjects 02/05/13; the Hips
+joint's own rotation is no better a frame: a DAZ rig's Hips sit 10–15° off its torso.)
+A bone's roll about itself comes in as a unit
 normal (the canonical rest normal carried by the bone's global rotation), optional end
 effectors as positions relative to the hips, scaled to the robot.
 """
@@ -28,6 +29,7 @@ from robot_retarget.optimize.formulation import RobotProblem
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 from robot_retarget.skeleton.tree_tables import pointer_jumps
+from robot_retarget.skeleton.trunk import trunk_frames, trunk_frames_of_positions
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,8 @@ class FrameTargets:
     ee_positions: FloatArray | None = None  # (E, 3) m
     ee_weights: FloatArray | None = None  # (E,)
     root_height_m: float | None = None
+    # (3, 3) the trunk frame the targets are in (columns forward, left, up, canonical axes)
+    trunk_frame: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -55,6 +59,7 @@ class ClipTargets:
     ee_positions: FloatArray | None = None
     ee_weights: FloatArray | None = None  # (E,), the same for every frame
     root_height_m: FloatArray | None = None
+    trunk_frames: FloatArray | None = None  # (T, 3, 3)
 
     def __len__(self) -> int:
         return int(self.directions.shape[0])
@@ -66,6 +71,7 @@ class ClipTargets:
             ee_positions=None if self.ee_positions is None else self.ee_positions[t],
             ee_weights=self.ee_weights,
             root_height_m=None if self.root_height_m is None else float(self.root_height_m[t]),
+            trunk_frame=None if self.trunk_frames is None else self.trunk_frames[t],
         )
 
     def slice(self, start: int, stop: int) -> ClipTargets:
@@ -78,6 +84,7 @@ class ClipTargets:
             ee_positions=cut(self.ee_positions),
             ee_weights=self.ee_weights,
             root_height_m=cut(self.root_height_m),
+            trunk_frames=cut(self.trunk_frames),
         )
 
 
@@ -99,16 +106,6 @@ def _unit_rows(v: FloatArray, fallback: FloatArray) -> FloatArray:
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     ok = n > 1e-9
     return np.where(ok, v / np.where(ok, n, 1.0), fallback)
-
-
-_PELVIS_COLUMNS = [2, 0, 1]  # canonical Z (forward), X (left), Y (up)
-
-
-def pelvis_frames(hips_global: FloatArray) -> FloatArray:
-    """(T, 3, 3) body frames that tilt with the performer's pelvis: columns forward, left, up of
-    the Hips' global rotations (T, 4) in canonical coordinates (X left, Y up, Z forward)."""
-    r = quat.to_matrix(hips_global)
-    return np.asarray(r[..., _PELVIS_COLUMNS], dtype=np.float64)
 
 
 def targets_from_rotations(
@@ -157,7 +154,7 @@ def targets_from_globals(
     frames = pos.shape[0]
     pos = check_array("positions", pos, (frames, len(CANONICAL_JOINTS), 3))
     glob = check_array("global rotations", global_quats, (frames, len(CANONICAL_JOINTS), 4))
-    body = pelvis_frames(glob[:, 0])  # (T, 3, 3) canonical
+    body = trunk_frames_of_positions(pos)  # (T, 3, 3) canonical
     # M_t = F · B_tᵀ: canonical → robot root frame, per frame.
     m = np.einsum("ij,tkj->tik", problem.body_to_root, body)
     starts = [CANONICAL_JOINTS.index(b.canonical) for b in problem.bones]
@@ -174,7 +171,7 @@ def targets_from_globals(
         idx = [CANONICAL_JOINTS.index(name) for name, _ in problem.ee_frames]
         rel = (pos[:, idx] - hips[:, None]) * scale
         ee = problem.hip_center + np.einsum("tij,tej->tei", m, rel)
-    return ClipTargets(directions=dirs, normals=normals, ee_positions=ee)
+    return ClipTargets(directions=dirs, normals=normals, ee_positions=ee, trunk_frames=body)
 
 
 class FrameTargetBuilder:
@@ -219,11 +216,16 @@ class FrameTargetBuilder:
         starts = [CANONICAL_JOINTS.index(b.canonical) for b in bones]
         ends = [CANONICAL_JOINTS.index(b.canonical_end) for b in bones]
         nb = len(bones)
-        rows = [chain[ends] - chain[starts]]
+        hips = 0.5 * (chain[Joint.LeftUpLeg] + chain[Joint.RightUpLeg])
+        shoulders = 0.5 * (chain[Joint.LeftArm] + chain[Joint.RightArm])
+        rows = [
+            chain[ends] - chain[starts],
+            (chain[Joint.LeftUpLeg] - chain[Joint.RightUpLeg])[None],  # hip axis
+            (shoulders - hips)[None],  # trunk
+        ]
         self._ee = end_effectors and bool(problem.ee_frames)
         if self._ee:
             idx = [CANONICAL_JOINTS.index(name) for name, _ in problem.ee_frames]
-            hips = 0.5 * (chain[Joint.LeftUpLeg] + chain[Joint.RightUpLeg])
             rows.append((chain[idx] - hips) * scale)
         self._sums = np.concatenate(rows)  # bone vectors → (B + 1 + E, 3) canonical vectors
         # Rotate each bone offset by its parent's global rotation, each rest normal by its
@@ -231,8 +233,6 @@ class FrameTargetBuilder:
         self._rot_index = np.array(
             [parent[i] for i in range(1, j)] + [b.carrier_joint for b in bones], dtype=np.int64
         )
-        if self._rot_index[0] != 0:
-            raise SolveError("the canonical skeleton's joint 1 must hang from the root")
         normals_c = np.array([problem.canonical_to_root.T @ b.rest_normal for b in bones])
         self._vectors = np.concatenate([skeleton.offsets[1:], normals_c])[:, :, None]
         self._num_offsets = j - 1
@@ -256,10 +256,10 @@ class FrameTargetBuilder:
         mats = (sel[:, :, None] * sel[:, None, :]).reshape(-1, 16) @ self._rot + self._eye
         rotated = (mats.reshape(-1, 3, 3) @ self._vectors)[:, :, 0]
         no, nb = self._num_offsets, self._num_bones
-        sums = self._sums @ rotated[:no]  # bone directions, end effectors
-        # Pelvis frame (forward, left, up) as rows, then canonical → robot root. Row 0 of
-        # ``mats`` is the root's rotation (joint 1's parent, checked in __init__).
-        m = self._body_to_root @ mats[0].reshape(3, 3)[:, _PELVIS_COLUMNS].T
+        sums = self._sums @ rotated[:no]  # bone directions, hip axis, trunk, end effectors
+        trunk = trunk_frames(sums[nb], sums[nb + 1])
+        # Trunk frame (forward, left, up) as rows, then canonical → robot root.
+        m = self._body_to_root @ trunk.T
         vecs = np.concatenate([sums[:nb], rotated[no:]]) @ m.T
         norms = np.sqrt(np.einsum("ij,ij->i", vecs, vecs))[:, None]
         if norms.min() > 1e-9:
@@ -268,5 +268,7 @@ class FrameTargetBuilder:
             vecs = _unit_rows(vecs, self._fallback)
         ee = None
         if self._ee:
-            ee = self._hip_center + sums[nb:] @ m.T
-        return FrameTargets(directions=vecs[:nb], normals=vecs[nb:], ee_positions=ee)
+            ee = self._hip_center + sums[nb + 2 :] @ m.T
+        return FrameTargets(
+            directions=vecs[:nb], normals=vecs[nb:], ee_positions=ee, trunk_frame=trunk
+        )

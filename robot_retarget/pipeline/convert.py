@@ -114,7 +114,7 @@ def convert_motion(
     q = np.empty((n, config.num_joints))
     root_pos = np.empty((0, 3))
     root_quat = np.empty((0, 4))
-    pelvis = np.empty((n, 4))  # the network's root rotation: the frame the limbs were solved in
+    trunk = np.empty((n, 3, 3))  # the frames the limbs were solved in: the base turns with them
     frame_ms = np.empty(n)
     t_start = time.perf_counter()
     for t in range(n):
@@ -125,13 +125,13 @@ def convert_motion(
         sent = safety.send(JointCommand(out.q, t * dt * _STAMP_STRETCH))
         frame_ms[t] = (time.perf_counter() - t0) * 1e3
         q[t] = sent.q
-        pelvis[t] = out.root_quat
+        trunk[t] = out.trunk_frame
         if progress is not None:
             progress(t + 1, n)
     wall = time.perf_counter() - t_start
     safety.disconnect()
     # The base link's pose in the robot's world (Z up, x forward), feet on the ground.
-    base = floating_base(config, m, q, pelvis_quats=pelvis) if n else None
+    base = floating_base(config, m, q, trunk_frames=trunk) if n else None
     pos = base.root_pos if base is not None else root_pos
     quat = base.root_quat if base is not None else root_quat
     t0 = 0.0

@@ -5,8 +5,9 @@ Robotics tools place a robot by its base link's pose in a Z-up, x-forward, y-lef
 The performer's motion is Y-up, facing +Z, at human scale; this module turns it into that pose
 for the robot's own proportions, with its feet on the ground:
 
-- **orientation**: the performer's pelvis, rotation for rotation (heading and tilt), applied to
-  the robot's root frame through its config's up/forward axes;
+- **orientation**: the trunk frame the joint angles were solved in (heading and lean of the
+  performer's torso, :mod:`robot_retarget.skeleton.trunk`), applied to the robot's root frame
+  through its config's up/forward axes: the limbs stand in the world where the performer's do;
 - **horizontal path**: the pelvis' ground track from the first frame, scaled by the leg-length
   ratio (robot / performer: a 0.5 m robot takes proportionally shorter steps), plus a
   correction that pins a foot in stance where it landed (below);
@@ -37,15 +38,15 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ConfigError, RetargetError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion
-from robot_retarget.optimize.bone_model import foot_frames
+from robot_retarget.optimize.bone_model import body_to_root, foot_frames
 from robot_retarget.robot.canonical_skeleton import (
     robot_canonical_skeleton,
-    robot_to_canonical_rotation,
 )
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.canonical import Joint
 from robot_retarget.skeleton.skeleton import Skeleton
+from robot_retarget.skeleton.trunk import trunk_frames_of_positions
 
 # Canonical human axes (X left, Y up, Z forward) → world (x forward, y left, z up).
 HUMAN_TO_WORLD = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -110,15 +111,15 @@ def floating_base(
     *,
     contact_m: float = CONTACT_M,
     pin_feet: bool = True,
-    pelvis_quats: npt.ArrayLike | None = None,
+    trunk_frames: npt.ArrayLike | None = None,
 ) -> FloatingBase:
     """The base link's world pose for joint angles ``q`` (T, J) retargeted from ``motion`` (T
     frames at the same rate).
 
-    ``pelvis_quats`` (T, 4): the pelvis rotation (canonical axes) the joint angles were solved
-    relative to — the retargeting network's root output, which may correct the performer's —
-    default the performer's own Hips. The base turns and tilts with it, so the limbs stand in
-    the world as the optimizer placed them relative to the pelvis."""
+    ``trunk_frames`` (T, 3, 3): the trunk frames (columns forward, left, up, canonical axes;
+    :mod:`robot_retarget.skeleton.trunk`) the joint angles were solved in — the retargeted
+    pose's, as ``convert`` passes them — default the performer's own. The base turns and tilts
+    with them, so the limbs stand in the world as the optimizer placed them."""
     q_arr = np.asarray(q, dtype=np.float64)
     n = motion.num_frames
     if q_arr.shape != (n, config.num_joints):
@@ -131,22 +132,22 @@ def floating_base(
     feet = foot_points(config)
     ratio = leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(motion.skeleton)
 
-    # Orientation: root frame → canonical (config axes) → performer's pelvis → world.
-    c = robot_to_canonical_rotation(config)
-    pelvis = motion.local_quats[:, 0] if pelvis_quats is None else pelvis_quats
-    pelvis_arr = np.asarray(pelvis, dtype=np.float64)
-    if pelvis_arr.shape != (n, 4) or not np.all(np.isfinite(pelvis_arr)):
+    # Orientation: root frame → body axes (forward, left, up) → trunk frame → world.
+    human = motion.positions()
+    frames = np.asarray(
+        trunk_frames_of_positions(human) if trunk_frames is None else trunk_frames,
+        dtype=np.float64,
+    )
+    if frames.shape != (n, 3, 3) or not np.all(np.isfinite(frames)):
         raise FloatingBaseError(
-            f"pelvis_quats must be ({n}, 4) finite quaternions (one per motion frame), got "
-            f"{pelvis_arr.shape}",
-            expected=(n, 4),
-            got=pelvis_arr.shape,
+            f"trunk_frames must be ({n}, 3, 3) finite rotations (one per motion frame), got "
+            f"{frames.shape}",
+            expected=(n, 3, 3),
+            got=frames.shape,
         )
-    hips = quat.to_matrix(quat.normalize(pelvis_arr))  # (T, 3, 3) canonical
-    base_rot = HUMAN_TO_WORLD @ hips @ c  # (T, 3, 3)
+    base_rot = HUMAN_TO_WORLD @ frames @ body_to_root(config).T  # (T, 3, 3)
 
     # Height targets: the performer's foot height above their ground, scaled.
-    human = motion.positions()
     heights = human_foot_heights_m(human)  # (T, 4)
     lowest = ratio * heights.min(axis=1)
     track = (human[:, 0] - human[:1, 0]) @ HUMAN_TO_WORLD.T * ratio  # (T, 3) world

@@ -16,7 +16,7 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize import Retargeter, SolveResult
-from robot_retarget.optimize.targets import FrameTargetBuilder
+from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.runtime.loader import load_runtime_model, online_retargeter
@@ -31,11 +31,14 @@ if TYPE_CHECKING:
 class StepOutput:
     """One frame's result. ``q`` (J,) rad is inside every limit (the optimizer checked it);
     ``root_pos`` (3,) m and ``root_quat`` (4,) are the retargeted root (canonical axes, Y up);
+    ``trunk_frame`` (3, 3) the retargeted pose's trunk frame the joint angles were solved in
+    (columns forward, left, up, canonical axes: the floating base's orientation);
     ``times_s`` are the seconds spent in (network, targets, solve)."""
 
     q: FloatArray
     root_pos: FloatArray
     root_quat: FloatArray
+    trunk_frame: FloatArray
     solve: SolveResult
     times_s: tuple[float, float, float]
 
@@ -129,6 +132,13 @@ class RetargetStep:
             q=np.asarray(result.q, dtype=np.float64),
             root_pos=np.asarray(root, dtype=np.float64),
             root_quat=np.asarray(quats[0], dtype=np.float64),
+            trunk_frame=_trunk_frame(targets),
             solve=result,
             times_s=(t1 - t0, t2 - t1, t3 - t2),
         )
+
+
+def _trunk_frame(targets: FrameTargets) -> FloatArray:
+    if targets.trunk_frame is None:  # every builder sets it; a custom one may not
+        raise ValueError("the step's target builder gave no trunk frame")
+    return targets.trunk_frame

@@ -230,7 +230,7 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
             fallbacks += int(result.used_fallback)
         ms = (time.perf_counter() - t0) * 1e3 / m.num_frames
         safety.disconnect()
-        base = floating_base(config, m, q)  # the performer's pelvis: the targets' frame
+        base = floating_base(config, m, q)  # the performer's trunk frames, as the targets'
         return PipelineRun(q, rate, fallbacks, ms, base.root_quat)
 
     return run
