@@ -14,19 +14,21 @@
 
 Measured with the shipped model (``python launch.py eval-robot --robot ROBOT
 [--val-subjects …]``, 10 fps scoring; the tuning set is what the optimizer's defaults were
-chosen on, the never-tuned set was looked at only at the end). Direction error mean over the
-nine segments (in brackets: over the eight limb segments — GMR-style IK has no torso task, it
-needs a floating base); every method had 0 joint-limit and 0 joint-speed violations:
+chosen on, the never-tuned set was looked at only at the end). The pipeline is scored on its
+own floating base (the trajectory's ``root_quat``: its trunk leans with the performer's torso);
+the baselines and the limit have none and stand upright. Direction error mean over the nine
+segments (in brackets: over the eight limb segments); every method had 0 joint-limit and 0
+joint-speed violations:
 
 ========  ===========  =============  =============  =============  =============
 robot     subjects     pipeline       GMR-style IK   position IK    limit
 ========  ===========  =============  =============  =============  =============
-OP3       02 05 13 ¹   14.02 (14.02)  16.11 (16.38)  16.30 (16.59)  10.10 ( 9.62)
-OP3       06 08 12 ²   12.16 (13.04)  11.77 (12.60)  12.70 (13.64)   9.22 ( 9.73)
-OP3       03 07 10 14  13.42 (14.31)  16.16 (17.39)  17.69 (19.11)   8.10 ( 8.33)
-Poppy     02 05 13 ¹    4.91 ( 4.79)   5.90 ( 3.06)  10.94 ( 9.57)   0.45 ( 0.35)
-Poppy     06 08 12 ²    3.64 ( 3.61)   8.05 ( 4.39)  12.67 (12.26)   0.04 ( 0.02)
-Poppy     03 07 10 14   3.72 ( 3.58)   5.06 ( 1.94)  10.10 ( 9.26)   0.08 ( 0.03)
+OP3       02 05 13 ¹   13.41 (14.58)  16.11 (16.38)  16.30 (16.59)  10.12 ( 9.64)
+OP3       06 08 12 ²   13.02 (14.15)  11.77 (12.60)  12.70 (13.64)   9.22 ( 9.73)
+OP3       03 07 10 14  13.54 (14.71)  16.16 (17.39)  17.69 (19.11)   8.11 ( 8.33)
+Poppy     02 05 13 ¹    4.76 ( 4.79)   5.90 ( 3.06)  10.94 ( 9.57)   0.44 ( 0.35)
+Poppy     06 08 12 ²    3.34 ( 3.28)   8.05 ( 4.39)  12.67 (12.26)   0.03 ( 0.01)
+Poppy     03 07 10 14   3.58 ( 3.58)   5.06 ( 1.94)  10.10 ( 9.26)   0.08 ( 0.03)
 ========  ===========  =============  =============  =============  =============
 
 End-effector error (limb lengths) / jerk (rad/s³):
@@ -34,17 +36,18 @@ End-effector error (limb lengths) / jerk (rad/s³):
 ========  ===========  ============  ============  ============  ======
 robot     subjects     pipeline      GMR-style IK  position IK   limit
 ========  ===========  ============  ============  ============  ======
-OP3       02 05 13 ¹   0.232 / 1299  0.258 / 2468  0.221 / 3340  0.216
-OP3       06 08 12 ²   0.216 / 1296  0.207 / 2617  0.163 / 3548  0.185
-OP3       03 07 10 14  0.241 / 1166  0.284 / 2038  0.270 / 2811  0.172
-Poppy     02 05 13 ¹   0.142 / 1152  0.190 /  740  0.174 / 1228  0.211
-Poppy     06 08 12 ²   0.138 / 1083  0.195 /  721  0.171 / 1453  0.211
-Poppy     03 07 10 14  0.126 /  997  0.173 /  664  0.168 / 1099  0.187
+OP3       02 05 13 ¹   0.237 / 1478  0.258 / 2468  0.221 / 3340  0.216
+OP3       06 08 12 ²   0.234 / 1549  0.207 / 2617  0.163 / 3548  0.185
+OP3       03 07 10 14  0.245 / 1251  0.284 / 2038  0.270 / 2811  0.172
+Poppy     02 05 13 ¹   0.139 / 1136  0.190 /  740  0.174 / 1228  0.210
+Poppy     06 08 12 ²   0.120 / 1076  0.195 /  721  0.171 / 1453  0.208
+Poppy     03 07 10 14  0.129 /  964  0.173 /  664  0.168 / 1099  0.186
 ========  ===========  ============  ============  ============  ======
 
-¹ tuning set; before issue #11's optimizer work: OP3 15.25° / .247 / 2260, Poppy 7.08° / .136 /
-1402. ² validation subjects (the default); before: OP3 11.87° / .206 / 2052, Poppy 5.12° /
-.109 / 1286. Never-tuned before: OP3 15.81° / .278 / 1739, Poppy 6.04° / .111 / 1136.
+¹ tuning set; ² validation subjects (the default). Before the trunk frame (limbs solved for an
+upright trunk, scored upright — the exported base then tilted them, 20.7° off in the world on
+OP3 02/05/13): OP3 14.02 / 12.16 / 13.42, Poppy 4.91 / 3.64 / 3.72. Before issue #11's
+optimizer work: OP3 15.25° / 11.87° / 15.81°, Poppy 7.08° / 5.12° / 6.04°.
 
 What is left on OP3 is its arms: three joints (no upper-arm twist, an elbow that bends both ways)
 for two bone directions give several local optima, and a warm-started solve keeps the one it
