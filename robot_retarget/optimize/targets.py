@@ -29,7 +29,7 @@ from robot_retarget.optimize.formulation import RobotProblem
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 from robot_retarget.skeleton.tree_tables import pointer_jumps
-from robot_retarget.skeleton.trunk import trunk_frames, trunk_frames_of_positions
+from robot_retarget.skeleton.trunk import trunk_frame, trunk_frames_of_positions
 
 
 @dataclass(frozen=True)
@@ -257,7 +257,7 @@ class FrameTargetBuilder:
         rotated = (mats.reshape(-1, 3, 3) @ self._vectors)[:, :, 0]
         no, nb = self._num_offsets, self._num_bones
         sums = self._sums @ rotated[:no]  # bone directions, hip axis, trunk, end effectors
-        trunk = trunk_frames(sums[nb], sums[nb + 1])
+        trunk = trunk_frame(sums[nb], sums[nb + 1])
         # Trunk frame (forward, left, up) as rows, then canonical → robot root.
         m = self._body_to_root @ trunk.T
         vecs = np.concatenate([sums[:nb], rotated[no:]]) @ m.T

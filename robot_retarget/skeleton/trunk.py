@@ -12,6 +12,8 @@ stands in the world where the performer's does.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -36,6 +38,26 @@ def trunk_frames(hip_axis: npt.ArrayLike, trunk: npt.ArrayLike) -> FloatArray:
     left = _unit(left, _unit(fallback, np.cross(up, np.array([0.0, 0.0, 1.0]))))
     fwd = np.cross(left, up)
     return np.stack([fwd, left, up], axis=-1)
+
+
+def trunk_frame(hip_axis: FloatArray, trunk: FloatArray) -> FloatArray:
+    """One frame of :func:`trunk_frames` from (3,) vectors, in plain floats: the live path calls
+    this every control tick, where numpy's per-call overhead on 3-vectors costs ≈ 10× more."""
+    tx, ty, tz = float(trunk[0]), float(trunk[1]), float(trunk[2])
+    n = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if not n > _EPS:
+        return trunk_frames(hip_axis, trunk)
+    ux, uy, uz = tx / n, ty / n, tz / n
+    hx, hy, hz = float(hip_axis[0]), float(hip_axis[1]), float(hip_axis[2])
+    d = hx * ux + hy * uy + hz * uz
+    lx, ly, lz = hx - d * ux, hy - d * uy, hz - d * uz
+    m = math.sqrt(lx * lx + ly * ly + lz * lz)
+    if not m > _EPS:
+        return trunk_frames(hip_axis, trunk)
+    lx, ly, lz = lx / m, ly / m, lz / m
+    # forward = left × up
+    fx, fy, fz = ly * uz - lz * uy, lz * ux - lx * uz, lx * uy - ly * ux
+    return np.array(((fx, lx, ux), (fy, ly, uy), (fz, lz, uz)))
 
 
 def trunk_frames_of_positions(positions: npt.ArrayLike) -> FloatArray:

@@ -10,7 +10,7 @@ from hypothesis.extra.numpy import arrays
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.skeleton.canonical import Joint
-from robot_retarget.skeleton.trunk import trunk_frames, trunk_frames_of_positions
+from robot_retarget.skeleton.trunk import trunk_frame, trunk_frames, trunk_frames_of_positions
 
 vectors = arrays(np.float64, (3,), elements=st.floats(-10, 10, allow_nan=False))
 
@@ -31,6 +31,13 @@ def test_up_follows_the_trunk_and_left_the_hips(hip_axis: np.ndarray, trunk: np.
         side = hip_axis - f[:, 2] * (hip_axis @ f[:, 2])
         if np.linalg.norm(side) > 1e-6:
             np.testing.assert_allclose(f[:, 1], side / np.linalg.norm(side), atol=1e-9)
+
+
+@given(vectors, vectors)
+def test_the_one_frame_version_agrees(hip_axis: np.ndarray, trunk: np.ndarray) -> None:
+    np.testing.assert_allclose(
+        trunk_frame(hip_axis, trunk), trunk_frames(hip_axis, trunk), atol=1e-9
+    )
 
 
 def test_an_upright_performer_facing_forward_gives_the_canonical_body_axes() -> None:
