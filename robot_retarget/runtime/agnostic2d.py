@@ -98,11 +98,21 @@ def _lrelu(x: FloatArray) -> FloatArray:
 def rotation_6d_to_quat(d6: FloatArray) -> FloatArray:
     """(…, 6) → unit quaternions (…, 4), Gram–Schmidt as the torch model."""
     a1, a2 = d6[..., :3], d6[..., 3:]
-    b1 = a1 / np.maximum(np.linalg.norm(a1, axis=-1, keepdims=True), 1e-12)
+    b1 = a1 / np.maximum(np.sqrt((a1 * a1).sum(-1, keepdims=True)), 1e-12)
     a2 = a2 - (b1 * a2).sum(-1, keepdims=True) * b1
-    b2 = a2 / np.maximum(np.linalg.norm(a2, axis=-1, keepdims=True), 1e-12)
-    b3 = np.cross(b1, b2)
-    return quat.normalize(quat.from_matrix(np.stack([b1, b2, b3], axis=-1)))
+    b2 = a2 / np.maximum(np.sqrt((a2 * a2).sum(-1, keepdims=True)), 1e-12)
+    x1, y1, z1 = b1[..., 0], b1[..., 1], b1[..., 2]
+    x2, y2, z2 = b2[..., 0], b2[..., 1], b2[..., 2]
+    # b3 = b1 × b2; the matrix has columns b1, b2, b3 (m_rc = column c's row r).
+    x3, y3, z3 = y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2
+    trace = x1 + y2 + z3
+    if np.all(trace > -0.5):  # w ≥ 0.35 everywhere: the direct formula is well conditioned
+        w = 0.5 * np.sqrt(1.0 + trace)
+        f = 0.25 / w
+        q = np.stack([w, (z2 - y3) * f, (x3 - z1) * f, (y1 - x2) * f], axis=-1)
+        out: FloatArray = q / np.sqrt((q * q).sum(-1, keepdims=True))
+        return out
+    return quat.normalize(quat.from_matrix(np.stack([b1, b2, np.stack([x3, y3, z3], -1)], -1)))
 
 
 def _pointwise(x: FloatArray, conv: Conv) -> FloatArray:
