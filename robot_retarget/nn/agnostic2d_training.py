@@ -48,6 +48,7 @@ from robot_retarget.nn.dataset import (
     load_dataset,
 )
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
+from robot_retarget.nn.models.registry import KEYPOINT_MODELS
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime, save_agnostic2d
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint, default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
@@ -302,7 +303,10 @@ def load_keypoint_checkpoint(path: str | Path) -> tuple[Agnostic2D, dict[str, An
         raise ModelLoadError(f"not a {CHECKPOINT_FORMAT} checkpoint", path=source)
     config = dict(payload["config"])
     config["dilations"] = tuple(config.get("dilations", (1, 2, 4, 8)))
-    model = Agnostic2D(**config)
+    name = str(payload.get("model", Agnostic2D.name))
+    if name not in KEYPOINT_MODELS:
+        raise ModelLoadError(f"unknown keypoint model {name!r}", path=source, model=name)
+    model = KEYPOINT_MODELS[name](**config)
     model.load_state_dict(payload["state_dict"])
     model.eval()
     return model, payload
@@ -336,7 +340,7 @@ def train_agnostic2d(
     config = dict(cfg.model_config)
     if "dilations" in config:
         config["dilations"] = tuple(config["dilations"])
-    model = Agnostic2D(**config)
+    model = KEYPOINT_MODELS[Agnostic2D.name](**config)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, amsgrad=True)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(
         opt, T_max=max(cfg.steps, 1), eta_min=cfg.lr * 0.05

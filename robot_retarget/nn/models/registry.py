@@ -14,6 +14,7 @@ from torch import nn
 
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.nn.discriminators import NKNDiscriminator, PMnetDiscriminator
+from robot_retarget.nn.models.agnostic2d import Agnostic2D
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.copy import CopyModel, CopyScaledModel
 from robot_retarget.nn.models.nkn import NKN
@@ -23,6 +24,10 @@ from robot_retarget.nn.models.residual import ResidualRetargeter
 MODELS: dict[str, type[RetargetModel]] = {
     cls.name: cls for cls in (CopyModel, CopyScaledModel, NKN, PMnet, ResidualRetargeter)
 }
+
+# Models of 2D keypoints (not RetargetModels: their input is pixels, not rotations); trained
+# by robot_retarget.nn.agnostic2d_training, run by robot_retarget.runtime.agnostic2d.
+KEYPOINT_MODELS: dict[str, type[Agnostic2D]] = {Agnostic2D.name: Agnostic2D}
 
 DISCRIMINATORS: dict[str, type[nn.Module]] = {
     NKN.name: NKNDiscriminator,
