@@ -143,6 +143,13 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     records: list[dict[str, Any]] = []
     try:
         for name in names:
+            if name == "agnostic2d":  # the 2D keypoint model: pixels in, not rotations
+                from robot_retarget.nn.keypoint_benchmark import time_keypoint_model
+
+                records += time_keypoint_model(
+                    args.frames, args.warmup, args.clip_repeats, args.threads
+                )
+                continue
             model, weights = resolve(name)
             modes: tuple[str, ...] = ("online", "clip") if args.mode == "both" else (args.mode,)
             if "online" in modes and has_numpy_twin(model):

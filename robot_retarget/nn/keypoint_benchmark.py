@@ -1,0 +1,66 @@
+"""``bench model --model agnostic2d``: the keypoint model's time per frame.
+
+Rows: ``online-numpy`` (the causal step ``stream`` runs: features, encoders, head → 22
+rotations, one camera frame at a time), ``clip-numpy`` (``convert``'s whole-clip pass, time /
+frames) and ``clip`` (the torch model's forward pass, time / frames). Input: the built-in demo
+clip seen by a virtual camera with estimator-like noise (timing does not depend on it).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+import torch
+
+from robot_retarget.bench_stats import TimingStats
+
+NAME = "agnostic2d"
+
+
+def time_keypoint_model(
+    frames: int, warmup: int, repeats: int, threads: int
+) -> list[dict[str, Any]]:
+    from robot_retarget.keypoints.normalize import normalize_sequences
+    from robot_retarget.keypoints.synthetic import EstimatorNoise, render_keypoints
+    from robot_retarget.keypoints.virtual_camera import VirtualCamera
+    from robot_retarget.motion.synthetic import demo_motion
+    from robot_retarget.nn.agnostic2d_training import load_keypoint_checkpoint
+    from robot_retarget.runtime.agnostic2d import SHIPPED_KEYPOINT_MODEL, load_keypoint_model
+
+    motion = demo_motion(fps=30.0)
+    cam = VirtualCamera(0.4, math.radians(15.0), 4.0, 1000.0)
+    px, _conf, valid = render_keypoints(
+        motion.positions(), motion.global_quats(), motion.height_m, cam,
+        np.random.default_rng(0), EstimatorNoise(),
+    )  # fmt: skip
+    n = px.shape[0]
+    runtime = load_keypoint_model()
+    step = runtime.online()
+    online = []
+    for i in range(frames + warmup):
+        t0 = time.perf_counter()
+        step.step(px[i % n], valid[i % n])
+        if i >= warmup:
+            online.append(time.perf_counter() - t0)
+    clip_np, clip_torch = [], []
+    model, _payload = load_keypoint_checkpoint(SHIPPED_KEYPOINT_MODEL.with_suffix(".pt"))
+    feats = torch.from_numpy(normalize_sequences(px[None], valid[None]).astype(np.float32))
+    with torch.inference_mode():
+        model(feats[:, :30], False)  # warm up
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            runtime.run_clip(px, valid, causal=False)
+            clip_np.append((time.perf_counter() - t0) / n)
+            t0 = time.perf_counter()
+            model(feats, False)
+            clip_torch.append((time.perf_counter() - t0) / n)
+    out = []
+    for mode, durations, count in (("online-numpy", online, frames), ("clip-numpy", clip_np, n),
+                                   ("clip", clip_torch, n)):  # fmt: skip
+        stats = TimingStats.from_seconds(durations)
+        out.append({"model": NAME, "mode": mode, "frames": count, "median_ms": stats.median_ms,
+                    "p99_ms": stats.p99_ms, "weights": "trained", "threads": threads})  # fmt: skip
+    return out
