@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.geometry import quaternion as quat
@@ -83,3 +85,19 @@ def test_shipped_runtime_is_the_shipped_checkpoint(tmp_path: Path) -> None:
     assert shipped.checkpoint_sha256 == hashlib.sha256(pt.read_bytes()).hexdigest()
     for name, a in fresh.weights.arrays().items():
         np.testing.assert_array_equal(a, shipped.weights.arrays()[name], err_msg=name)
+
+
+@settings(max_examples=60)
+@given(
+    st.lists(st.floats(-1e12, 1e12, allow_nan=False), min_size=34, max_size=34),
+    st.lists(st.booleans(), min_size=17, max_size=17),
+)
+def test_any_keypoints_give_unit_rotations(coords: list[float], seen: list[bool]) -> None:
+    """Whatever a sender's points are (huge, coincident, mostly missing), the model's output is
+    22 finite unit quaternions: nothing a camera sends can make the optimizer's input invalid."""
+    step = load_keypoint_model().online()
+    xy = np.array(coords).reshape(17, 2)
+    for _ in range(3):
+        q = step.step(xy, np.array(seen))
+        assert np.isfinite(q).all()
+        np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
