@@ -29,9 +29,10 @@ def lift_keypoints(
     sequence: KeypointSequence, model: Agnostic2DRuntime, *, causal: bool = False
 ) -> HumanMotion:
     """The performer's motion on the reference skeleton (``causal=False``: the whole clip's
-    static codes, as ``convert`` uses)."""
+    static codes and the mirrored image's answer averaged in, as ``convert`` uses)."""
     skeleton = default_canonical_skeleton()
-    quats = model.run_clip(sequence.xy, sequence.valid, causal=causal)
+    # The whole clip is at hand offline: average with the mirrored image's answer too.
+    quats = model.run_clip(sequence.xy, sequence.valid, causal=causal, mirror_average=not causal)
     root = np.repeat(standing_root(skeleton)[None], sequence.num_frames, axis=0)
     return HumanMotion(skeleton, quats, root, sequence.fps, source_path=sequence.source)
 
