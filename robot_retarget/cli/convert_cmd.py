@@ -197,11 +197,18 @@ def run(args: argparse.Namespace) -> int:
         clip, out = job.clip, job.out
         try:
             if is_keypoint_input(clip):
-                motion = load_keypoint_motion(
+                lifted = load_keypoint_motion(
                     clip,
                     model=args.keypoint_model,
                     fps=args.keypoint_fps,
                     max_frames=args.max_frames,
+                )
+                motion = lifted.motion
+                print(
+                    f"{clip}: {motion.num_frames} keypoint frames at {motion.fps:g} fps, "
+                    f"{lifted.missing_fraction:.1%} of points missing, {lifted.frames_held} "
+                    "frame(s) without a body (the last seen pose held)",
+                    file=sys.stderr,
                 )
             else:
                 motion = load_motion(clip, max_frames=args.max_frames)

@@ -4,14 +4,23 @@ The model gives rotations only: from one uncalibrated camera the performer's pat
 room is not recovered, so the root stays over the origin at the reference skeleton's standing
 hip height (the robot steps in place; its pose and heading follow the performer). Its heading
 is relative to the camera: a performer facing the camera faces the robot's forward.
+
+A frame in which fewer than :data:`MIN_BODY_POINTS` of the 12 body points (shoulders to
+ankles) are seen — nobody followed in view, or an occluded body — gets no pose of its own: the
+last seen frame's pose is held (the first seen one before it), and the count is reported
+(:class:`LiftedKeypoints`), never filled in silently.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from robot_retarget.array_types import BoolArray
+from robot_retarget.errors import MotionFormatError
+from robot_retarget.keypoints.coco17 import BODY_JOINTS
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
@@ -25,6 +34,25 @@ def standing_root(skeleton: Skeleton) -> np.ndarray:
     return np.array([0.0, -float(rest[:, 1].min()), 0.0])
 
 
+MIN_BODY_POINTS = 6
+_BODY = np.array(sorted(BODY_JOINTS), dtype=np.int64)
+
+
+def body_seen(sequence: KeypointSequence) -> BoolArray:
+    """(T,) frames with at least MIN_BODY_POINTS body points seen."""
+    seen: BoolArray = sequence.valid[:, _BODY].sum(axis=1) >= MIN_BODY_POINTS
+    return seen
+
+
+@dataclass(frozen=True)
+class LiftedKeypoints:
+    """A lifted keypoint file: the motion and what was missing in it."""
+
+    motion: HumanMotion
+    frames_held: int  # frames without enough body points: the last seen pose held
+    missing_fraction: float  # share of all points marked missing
+
+
 def lift_keypoints(
     sequence: KeypointSequence, model: Agnostic2DRuntime, *, causal: bool = False
 ) -> HumanMotion:
@@ -33,6 +61,17 @@ def lift_keypoints(
     skeleton = default_canonical_skeleton()
     # The whole clip is at hand offline: average with the mirrored image's answer too.
     quats = model.run_clip(sequence.xy, sequence.valid, causal=causal, mirror_average=not causal)
+    seen = body_seen(sequence)
+    if not seen.any():
+        raise MotionFormatError(
+            f"no frame shows {MIN_BODY_POINTS} or more body points above the confidence "
+            "threshold: nobody to follow (check the estimator's output, or lower its threshold)",
+            path=sequence.source or None,
+        )
+    # Frames without a body hold the last seen pose (the first seen one before it).
+    last = np.maximum.accumulate(np.where(seen, np.arange(len(seen)), -1))
+    last[last < 0] = int(np.argmax(seen))
+    quats = quats[last]
     root = np.repeat(standing_root(skeleton)[None], sequence.num_frames, axis=0)
     return HumanMotion(skeleton, quats, root, sequence.fps, source_path=sequence.source)
 
@@ -43,7 +82,7 @@ def load_keypoint_motion(
     model: str | None = None,
     fps: float | None = None,
     max_frames: int | None = None,
-) -> HumanMotion:
+) -> LiftedKeypoints:
     """A keypoint file or folder (robot_retarget.sources.keypoints) lifted by the keypoint
     model (None: the shipped one), non-causally, as ``convert`` does."""
     from robot_retarget.runtime.agnostic2d import load_keypoint_model
@@ -55,4 +94,5 @@ def load_keypoint_motion(
             seq.xy[:max_frames], seq.confidence[:max_frames], seq.valid[:max_frames], seq.fps,
             seq.source,
         )  # fmt: skip
-    return lift_keypoints(seq, load_keypoint_model(model), causal=False)
+    motion = lift_keypoints(seq, load_keypoint_model(model), causal=False)
+    return LiftedKeypoints(motion, int((~body_seen(seq)).sum()), seq.missing_fraction)

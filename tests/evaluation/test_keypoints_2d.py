@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from robot_retarget.evaluation.keypoints_2d import (
     ELEVATIONS_DEG,
@@ -62,3 +63,22 @@ def test_scorer_prefers_the_truth_to_standing_still() -> None:
     assert good[0] < still[0]
     assert good[3] == 0
     assert good[4] == 0
+
+
+def test_frames_without_a_body_hold_the_last_seen_pose() -> None:
+    from robot_retarget.errors import MotionFormatError
+    from robot_retarget.keypoints.sequence import KeypointSequence
+
+    motion = load_motion(CLIP)
+    seq = keypoints_of(
+        motion, VirtualCamera(0.3, 0.1, 4.0, 1000.0), np.random.default_rng(0), CLEAN
+    )
+    valid = seq.valid.copy()
+    valid[5:9] = False  # nobody in view for four frames
+    hidden = KeypointSequence(seq.xy, seq.confidence, valid, seq.fps, "x")
+    lifted = lift_keypoints(hidden, load_keypoint_model())
+    for t in range(5, 9):
+        np.testing.assert_array_equal(lifted.local_quats[t], lifted.local_quats[4])
+    nobody = KeypointSequence(seq.xy, seq.confidence, np.zeros_like(valid), seq.fps, "x")
+    with pytest.raises(MotionFormatError, match="nobody to follow"):
+        lift_keypoints(nobody, load_keypoint_model())

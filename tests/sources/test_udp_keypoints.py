@@ -78,10 +78,17 @@ def test_bad_packets_are_counted_never_raised(runtime: Agnostic2DRuntime) -> Non
 
 def test_nobody_in_view_is_a_frame_of_missing_points(runtime: Agnostic2DRuntime) -> None:
     src = UdpKeypointSource(runtime, "127.0.0.1", 0)
-    assert src.handle_packet(encode_keypoints(1, 0.0, []), 0.0) is not None
+    assert src.handle_packet(encode_keypoints(1, 0.0, []), 0.0) is None
+    assert src.stats.dropped["no_person"] == 1
+    occluded = _person(0.0)
+    occluded[5:12, 2] = 0.05  # 7 of the 12 body points below the threshold: 5 seen
+    assert src.handle_packet(encode_keypoints(2, 0.05, [occluded]), 0.0) is None
+    occluded[5, 2] = 0.9  # 6 seen: enough
+    assert src.handle_packet(encode_keypoints(3, 0.1, [occluded]), 0.0) is not None
+    assert src.stats.dropped["no_person"] == 2
     low = _person(0.0)
     low[:, 2] = 0.1  # below the confidence threshold
-    pkt = decode_keypoints(encode_keypoints(2, 0.1, [low]), 0.3)
+    pkt = decode_keypoints(encode_keypoints(4, 0.2, [low]), 0.3)
     assert not pkt.people[0][2].any()
 
 

@@ -8,7 +8,9 @@ nothing a sender does can raise in, or stall, the control loop. Each accepted pa
 go through the person rule (robot_retarget.sources.keypoints.person_choice), the followed
 person's points through the causal keypoint model (Agnostic2DStep); the frame delivered is the
 model's 22 canonical rotations on the reference skeleton, the root held at its standing height
-(robot_retarget.keypoints.lift).
+(robot_retarget.keypoints.lift). A packet in which fewer than 6 of the 12 body points are seen
+(nobody followed in view) delivers no frame (counted as ``no_person``): the control loop holds,
+then goes to the safe pose, as when a sender falls silent.
 """
 
 from __future__ import annotations
@@ -21,8 +23,8 @@ from collections.abc import Callable
 import numpy as np
 
 from robot_retarget.errors import SourceError
-from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS
-from robot_retarget.keypoints.lift import standing_root
+from robot_retarget.keypoints.coco17 import BODY_JOINTS, NUM_KEYPOINTS
+from robot_retarget.keypoints.lift import MIN_BODY_POINTS, standing_root
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
@@ -35,6 +37,7 @@ from robot_retarget.sources.udp import check_bind_address
 from robot_retarget.sources.wire import WireError
 
 DEFAULT_KEYPOINT_PORT = 9751
+_BODY = np.array(sorted(BODY_JOINTS), dtype=np.int64)
 _RECV_BYTES = 65536
 
 
@@ -130,7 +133,12 @@ class UdpKeypointSource(SocketSource):
             valid = np.zeros(NUM_KEYPOINTS, dtype=bool)
         else:
             xy, _conf, valid = pkt.people[chosen]
-        local = self._step.step(xy, valid)
+        local = self._step.step(xy, valid)  # the model sees every camera frame, in time
+        if int(valid[_BODY].sum()) < MIN_BODY_POINTS:
+            # Nobody (or too little of a body) in view: no frame, so the control loop holds
+            # and, after 2 s, goes to the safe pose, as for a silent sender.
+            self.stats.drop("no_person")
+            return None
         frame = SourceFrame(local, self._root.copy(), pkt.t_s, pkt.seq, recv_s)
         self.stats.accepted += 1
         self._queue.put(frame)
