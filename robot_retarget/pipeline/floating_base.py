@@ -145,7 +145,7 @@ def floating_base(
             expected=(n, 3, 3),
             got=frames.shape,
         )
-    base_rot = HUMAN_TO_WORLD @ frames @ body_to_root(config).T  # (T, 3, 3)
+    base_rot = base_rotations(config, frames)
 
     # Height targets: the performer's foot height above their ground, scaled.
     heights = human_foot_heights_m(human)  # (T, 4)
@@ -162,6 +162,13 @@ def floating_base(
     world_feet = rel + pos[:, None, :]
     root_quat = quat.make_continuous(quat.from_matrix(base_rot), axis=0)
     return FloatingBase(pos, root_quat, world_feet, feet)
+
+
+def base_rotations(config: RobotConfig, trunk_frames: npt.ArrayLike) -> FloatArray:
+    """(T, 3, 3) the base link's orientation in the world (root-frame vectors → world) for
+    trunk frames (T, 3, 3): root axes → body axes (forward, left, up) → trunk frame → world."""
+    frames = np.asarray(trunk_frames, dtype=np.float64)
+    return np.asarray(HUMAN_TO_WORLD @ frames @ body_to_root(config).T, dtype=np.float64)
 
 
 def _frame_sides(config: RobotConfig, frames: tuple[str, ...]) -> list[str]:

@@ -36,8 +36,8 @@ import numpy.typing as npt
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import SolveError
 from robot_retarget.evaluation.robot.box_qp import box_qp
-from robot_retarget.evaluation.robot.references import CANONICAL_UP, LIMBS
-from robot_retarget.evaluation.robot.segments import RobotSegmentFrames, body_axes
+from robot_retarget.evaluation.robot.references import LIMBS
+from robot_retarget.evaluation.robot.segments import RobotSegmentFrames
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.optimize.bone_model import (
     alignment,
@@ -49,6 +49,7 @@ from robot_retarget.optimize.chains import joints_above
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.canonical import Joint
+from robot_retarget.skeleton.trunk import trunk_frames_of_positions
 
 _FEET = ("LeftFoot", "RightFoot")  # canonical foot joints (start of the foot bones)
 _SETTLE_TOL_RAD = 1e-7
@@ -155,7 +156,7 @@ class GMRStyleIK:
         if pos.ndim != 3 or glob.shape[:2] != pos.shape[:2]:
             raise SolveError(f"positions (T, 22, 3) and rotations (T, 22, 4) must match: "
                              f"{pos.shape}, {glob.shape}")  # fmt: skip
-        axes = body_axes(pos[:, Joint.LeftUpLeg], pos[:, Joint.RightUpLeg], CANONICAL_UP)
+        axes = trunk_frames_of_positions(pos).transpose(0, 2, 1)  # rows: the trunk frame
         m = np.einsum("ij,tjk->tik", self._to_root, axes)  # world → root frame, per frame
         out = []
         for root, mid, end, a, b in LIMBS:

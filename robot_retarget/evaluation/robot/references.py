@@ -25,6 +25,7 @@ from robot_retarget.optimize.kinematic_limit import SegmentFrames
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.canonical import Joint
+from robot_retarget.skeleton.trunk import trunk_frames_of_positions
 
 CANONICAL_UP = np.array([0.0, 1.0, 0.0])
 # (limb root, middle, end) canonical joints, and the robot bones' indices in SEGMENTS order:
@@ -51,7 +52,7 @@ def baseline_targets(config: RobotConfig, positions: npt.ArrayLike) -> FloatArra
     zero = np.zeros(config.num_joints)
     p0 = kin.frame_positions(zero, [*frames.starts, *frames.ends])
     robot_len = np.linalg.norm(p0[8:] - p0[:8], axis=-1)
-    axes = body_axes(pos[:, Joint.LeftUpLeg], pos[:, Joint.RightUpLeg], CANONICAL_UP)
+    axes = trunk_frames_of_positions(pos).transpose(0, 2, 1)  # rows: the trunk frame
     to_root = body_to_root(config)  # columns: forward, left, up in the root frame
     out = []
     for root, mid, end, a, b in LIMBS:

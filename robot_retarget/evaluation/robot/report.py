@@ -65,7 +65,8 @@ def goal_check(report: EvalRobotReport) -> list[tuple[str, bool, str]]:
     """(goal, met, numbers) for each part of the acceptance target (issue #11)."""
     p, g, b, lim = (report.summary[m] for m in METHODS)
     d_p, d_l = (s.segment_mean_deg["overall"] for s in (p, lim))
-    # GMR-style IK has no torso task (it needs a floating base): compared on the limbs.
+    # GMR-style IK has no torso task (its torso is whatever its spine joints end at, on a base
+    # that follows the performer's trunk): compared on the limbs.
     l_p, l_g = (s.segment_mean_deg["limbs"] for s in (p, g))
     return [
         ("0 joint-limit violations", p.limit_violations == 0, f"{p.limit_violations}"),
@@ -106,8 +107,9 @@ def markdown_report(report: EvalRobotReport) -> str:
         f"- [{'x' if ok else ' '}] {goal}: {numbers}" for goal, ok, numbers in goal_check(report)
     )
     note = (
-        "GMR-style IK has no pelvis / torso task (it needs a floating base): compare it on the "
-        "limb rows."
+        "Every method stands on a floating base, scored in the world: the pipeline on its "
+        "trajectory's own (the network's trunk frames), the others on the performer's trunk "
+        "frames. GMR-style IK has no torso task: compare it on the limb rows."
     )
     return f"{head}\n\n{markdown_table(report)}\n\n{note}\n\nGoal (pipeline):\n{goals}\n"
 

@@ -58,15 +58,20 @@ from robot_retarget.evaluation.robot.references import (
 from robot_retarget.evaluation.robot.segments import (
     KINDS,
     SEGMENT_KIND,
+    WORLD_UP,
     BodyPoints,
     RobotBodyModel,
+    body_axes,
     human_body_points,
 )
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.optimize.kinematic_limit import KinematicLimit
 from robot_retarget.optimize.position_ik import PositionIK
+from robot_retarget.pipeline.floating_base import base_rotations
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.kinematics import RobotKinematics
+from robot_retarget.skeleton.trunk import trunk_frames_of_positions
 
 log = logging.getLogger(__name__)
 
@@ -260,6 +265,9 @@ class RobotEvaluator:
             random_starts=self.settings.random_starts,
             seed=self.settings.seed,
         )
+        self._upright_axes = robot_body_axes(config, frames)
+        zero = np.zeros(config.num_joints)
+        self._hips_root = RobotKinematics(config).frame_positions(zero, list(frames.hips))
         self.rate_hz = float(config.control_rate_hz)
         st = self.settings
         self.stride = st.stride or max(1, round(self.rate_hz / st.eval_fps))
@@ -282,15 +290,20 @@ class RobotEvaluator:
         gmr = self.gmr.solve_clip(self.gmr.targets(pos, human.global_quats()[:n]), dt)
         gmr_ms = (time.perf_counter() - t0) * 1e3 / n
         candidates = np.stack([q_pipe[idx], gmr.q[idx], base.q[idx]], axis=1)
-        limit_q, limit_ms = self._limit(h, candidates)
+        # The baselines and the limit stand on the performer's trunk frames, the pipeline on
+        # its trajectory's own base (the network's trunk frames): every method's limbs and
+        # torso are scored in the world, as a floating-base robot shows them.
+        world = base_rotations(self.config, trunk_frames_of_positions(pos))
+        pipe_world = world if run.root_quat is None else quat.to_matrix(run.root_quat[:n])
+        limit_q, limit_ms = self._limit(h, candidates, world[idx])
         qs = {"pipeline": q_pipe[idx], "gmr": gmr.q[idx], "baseline": base.q[idx], "limit": limit_q}
         methods = {
             "pipeline": self._method(
-                h, q_pipe, idx, rate, run.fallbacks, run.ms_per_frame, run.root_quat
+                h, q_pipe, idx, rate, run.fallbacks, run.ms_per_frame, pipe_world
             ),
-            "gmr": self._method(h, gmr.q, idx, rate, 0, gmr_ms),
-            "baseline": self._method(h, base.q, idx, rate, base.fallbacks, base_ms),
-            "limit": self._method(h, limit_q, None, rate, 0, limit_ms),
+            "gmr": self._method(h, gmr.q, idx, rate, 0, gmr_ms, world),
+            "baseline": self._method(h, base.q, idx, rate, base.fallbacks, base_ms, world),
+            "limit": self._method(h, limit_q, None, rate, 0, limit_ms, world[idx]),
         }
         return ClipScores(name, n / rate, methods, pos[idx], qs)
 
@@ -302,22 +315,24 @@ class RobotEvaluator:
         rate: float,
         fallbacks: int,
         ms: float,
-        root_quat: FloatArray | None = None,
+        world: FloatArray | None = None,
     ) -> MethodClip:
-        """Scores of joint angles ``q``; with ``root_quat`` (T, 4) the robot stands in the world
-        on that floating base (the pipeline's own output), else upright (the baselines)."""
+        """Scores of joint angles ``q`` (T, J); with ``world`` (T, 3, 3) the base's orientation
+        per frame the robot stands on that floating base, else upright."""
         sampled = q if idx is None else q[idx]
-        rot = None
-        if root_quat is not None:
-            rot = quat.to_matrix(root_quat if idx is None else root_quat[idx])
+        rot = None if world is None else (world if idx is None else world[idx])
         robot = self.body.body_points(sampled, rot)
         stats = None if idx is None else trajectory_stats(self.config, q, rate)
         return MethodClip(
             segment_angles(human, robot), end_effector_errors(human, robot), stats, fallbacks, ms
         )
 
-    def _limit(self, human: BodyPoints, candidates: FloatArray) -> tuple[FloatArray, float]:
-        """(poses (N, J), ms per evaluation frame), from the disk cache when possible."""
+    def _limit(
+        self, human: BodyPoints, candidates: FloatArray, world: FloatArray
+    ) -> tuple[FloatArray, float]:
+        """(poses (N, J), ms per evaluation frame) of the least direction error for a robot
+        whose base has orientation ``world`` (N, 3, 3); from the disk cache when possible."""
+        targets = self._limit_targets(human.directions, world)
         st = self.settings
         path = None
         if st.cache_dir is not None:
@@ -330,14 +345,14 @@ class RobotEvaluator:
                 repr((st.random_starts, st.seed)),
             ):
                 h.update(part.encode())
-            h.update(np.ascontiguousarray(human.directions).tobytes())
+            h.update(np.ascontiguousarray(targets).tobytes())
             h.update(np.ascontiguousarray(candidates).tobytes())
             path = st.cache_dir / f"limit-{h.hexdigest()[:24]}.npz"
             if path.is_file():
                 with np.load(path) as z:
                     return np.asarray(z["q"]), float(z["ms"])
         t0 = time.perf_counter()
-        result = self.limit.solve(human.directions, candidates)
+        result = self.limit.solve(targets, candidates)
         ms = (time.perf_counter() - t0) * 1e3 / max(1, candidates.shape[0])
         if path is not None:
             try:
@@ -346,6 +361,15 @@ class RobotEvaluator:
             except OSError as exc:  # a read-only cache only costs time next run
                 log.warning("could not cache the kinematic limit at %s: %s", path, exc)
         return result.q, ms
+
+    def _limit_targets(self, directions: FloatArray, world: FloatArray) -> FloatArray:
+        """The human's body-frame directions (N, S, 3) as the limit's solver reads them (the
+        upright robot's body frame, constant) for a robot whose base has orientation ``world``:
+        d_body = A_t · R_t · v_root must meet h, so v_root must meet R_tᵀ A_tᵀ h."""
+        hips = self._hips_root @ np.swapaxes(world, 1, 2)  # (N, 2, 3): R_t · p for each hip
+        a = body_axes(hips[:, 0], hips[:, 1], WORLD_UP)  # (N, 3, 3) rows, world
+        m = self._upright_axes @ np.swapaxes(world, 1, 2) @ np.swapaxes(a, 1, 2)
+        return np.asarray(np.einsum("nij,nsj->nsi", m, directions), dtype=np.float64)
 
 
 def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:

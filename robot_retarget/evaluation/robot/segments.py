@@ -47,7 +47,7 @@ SEGMENT_KIND: tuple[str, ...] = (*(k for k, _, _ in LIMB_KINDS for _ in SIDES), 
 END_EFFECTORS: tuple[str, ...] = ("left_hand", "right_hand", "left_foot", "right_foot")
 
 _CANONICAL_UP = np.array([0.0, 1.0, 0.0])
-_WORLD_UP = np.array([0.0, 0.0, 1.0])  # the robot world (REP-103) a floating base lives in
+WORLD_UP = np.array([0.0, 0.0, 1.0])  # the robot world (REP-103) a floating base lives in
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -228,7 +228,7 @@ class RobotBodyModel:
         hips = 0.5 * (hip_l + hip_r)
         shoulders = 0.5 * (sho_l + sho_r)
         vecs = np.concatenate([ends - starts, (shoulders - hips)[:, None]], axis=1)
-        up = self.up if root_rotation is None else _WORLD_UP
+        up = self.up if root_rotation is None else WORLD_UP
         axes = body_axes(hip_l, hip_r, up)
         arm, leg = self.frames.arm_length_m, self.frames.leg_length_m
         ee = np.stack(
