@@ -19,10 +19,12 @@ from robot_retarget.evaluation.live_corruption import CorruptedStream
 from robot_retarget.evaluation.robot.metrics import segment_angles
 from robot_retarget.evaluation.robot.segments import RobotBodyModel, human_body_points
 from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.pipeline.floating_base import base_rotations
 from robot_retarget.pipeline.loop import ControlLoop, LoopSettings, Mode
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.sim.backend import SimBackend
 from robot_retarget.skeleton.skeleton import Skeleton
+from robot_retarget.skeleton.trunk import trunk_frames_of_positions
 from robot_retarget.sources.base import MotionSource, SourceFrame, SourceStats
 from robot_retarget.sources.from_positions import PositionsToRotations
 
@@ -120,9 +122,13 @@ def score_live(
     q = np.array([e.q for e in played])
     t = np.array([e.play_t_s for e in played])
     frames = np.clip(np.rint(t * clean.fps).astype(int), 0, clean.num_frames - 1)
-    human = human_body_points(clean.positions()[frames])
+    positions = clean.positions()[frames]
+    human = human_body_points(positions)
     model = body or RobotBodyModel(config)
-    angles = segment_angles(human, model.body_points(q))
+    # A robot on its feet leans its trunk with its legs, as the performer does: it is scored on
+    # a base that follows the performer's trunk (the frame the live targets are solved in).
+    world = base_rotations(config, trunk_frames_of_positions(positions))
+    angles = segment_angles(human, model.body_points(q, world))
     period = loop.period_s
     third = np.diff(q, n=3, axis=0)
     jerk = float(np.mean(np.abs(third)) / period**3) if third.size else 0.0
