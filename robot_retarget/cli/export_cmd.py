@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import hashlib
 from pathlib import Path
 
 NAME = "export"
@@ -22,41 +21,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robot_retarget.errors import ModelLoadError, MotionFormatError
     from robot_retarget.nn.agnostic2d_training import (
         export_keypoint_checkpoint,
         is_keypoint_checkpoint,
     )
-    from robot_retarget.nn.inference import load_model
-    from robot_retarget.runtime.loader import runtime_of
-    from robot_retarget.runtime.model import load_runtime, save_runtime
+    from robot_retarget.nn.export import export_runtime
 
     if is_keypoint_checkpoint(args.checkpoint):  # the 2D keypoint model (agnostic2d)
         src = Path(args.checkpoint)
         written = export_keypoint_checkpoint(src, args.out, force=args.force)
         print(f"exported {src} (agnostic2d) → {written} ({written.stat().st_size} bytes)")
         return 0
-    loaded = load_model(args.checkpoint)
-    runtime = runtime_of(loaded)
-    if runtime is None:
-        raise ModelLoadError(
-            f"architecture {loaded.architecture!r} has no numpy runtime yet; stream it with "
-            "torch installed (the checkpoint itself works as --model)",
-            model=args.checkpoint,
-        )
-    if loaded.path is None:
-        raise ModelLoadError("built-in models need no export: use them by name", model=loaded.name)
-    out: Path = args.out or loaded.path.with_suffix(".npz")
-    if out.suffix != ".npz":
-        raise MotionFormatError("the runtime file must end in .npz", path=out)
-    if out.exists() and not args.force:
-        raise MotionFormatError("already exists; pass --force to replace it", path=out)
-    digest = hashlib.sha256(loaded.path.read_bytes()).hexdigest()
-    stem = loaded.path.stem if loaded.name == str(loaded.path) else loaded.name
-    runtime = type(runtime)(**{**runtime.__dict__, "name": stem, "checkpoint_sha256": digest})
-    tmp = out.with_name(f".{out.name}.tmp")
-    save_runtime(runtime, tmp)
-    load_runtime(tmp)  # refuse to leave a file that does not load back
-    tmp.replace(out)
-    print(f"exported {loaded.path} ({runtime.architecture}) → {out} ({out.stat().st_size} bytes)")
+    out, architecture = export_runtime(args.checkpoint, args.out, force=args.force)
+    print(f"exported {args.checkpoint} ({architecture}) → {out} ({out.stat().st_size} bytes)")
     return 0

@@ -185,11 +185,13 @@ def run(args: argparse.Namespace) -> int:
 
     command = "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
     result = train(config, resume=args.resume, progress=show, command=command)
+    runtime = _export_best(result.best_path)
     print(
         json.dumps(
             {
                 "out": str(result.out_dir),
                 "best": str(result.best_path),
+                "runtime": None if runtime is None else str(runtime),
                 "last": str(result.last_path),
                 "steps": result.steps,
                 "best_score": result.best_score,
@@ -198,6 +200,20 @@ def run(args: argparse.Namespace) -> int:
         )
     )
     return 0
+
+
+def _export_best(best: Path) -> Path | None:
+    """best.pt → best.npz beside it (stream and convert it without torch); None, with a note,
+    for an architecture that has no numpy runtime yet."""
+    from robot_retarget.errors import ModelLoadError
+    from robot_retarget.nn.export import export_runtime
+
+    try:
+        out, _ = export_runtime(best, force=True)
+    except ModelLoadError as exc:
+        print(f"note: {best} not exported ({exc})", file=sys.stderr)
+        return None
+    return out
 
 
 def _run_agnostic2d(args: argparse.Namespace) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import shutil
 from pathlib import Path
@@ -58,6 +59,13 @@ def test_train_eval_resume(mocap: Path, tmp_path: Path, capsys: pytest.CaptureFi
     assert summary["steps"] == 2
     assert "2/2" in captured.err  # the progress bar
     assert (out / "best.pt").is_file()
+    # ... and its numpy runtime beside it, which streams without torch and agrees with it.
+    assert summary["runtime"] == str(out / "best.npz")
+    from robot_retarget.runtime.model import load_runtime
+
+    assert load_runtime(out / "best.npz").checkpoint_sha256 == hashlib.sha256(
+        (out / "best.pt").read_bytes()
+    ).hexdigest()
 
     eval_args = ["--data", str(mocap), "--val-subjects", "s2,s3", "--cache-dir", str(cache)]
     code = _run(
