@@ -63,9 +63,10 @@ def test_train_eval_resume(mocap: Path, tmp_path: Path, capsys: pytest.CaptureFi
     assert summary["runtime"] == str(out / "best.npz")
     from robot_retarget.runtime.model import load_runtime
 
-    assert load_runtime(out / "best.npz").checkpoint_sha256 == hashlib.sha256(
-        (out / "best.pt").read_bytes()
-    ).hexdigest()
+    assert (
+        load_runtime(out / "best.npz").checkpoint_sha256
+        == hashlib.sha256((out / "best.pt").read_bytes()).hexdigest()
+    )
 
     eval_args = ["--data", str(mocap), "--val-subjects", "s2,s3", "--cache-dir", str(cache)]
     code = _run(

@@ -101,8 +101,8 @@ def test_a_converted_real_clip_follows_the_performer(shared_data_dir: Path) -> N
     trajectory's own floating base, follow the performer's (eval-robot's measure), far better
     than the init pose held still would."""
     from robot_retarget.evaluation.robot.metrics import segment_angles
-    from robot_retarget.geometry import quaternion as quat
     from robot_retarget.evaluation.robot.segments import RobotBodyModel, human_body_points
+    from robot_retarget.geometry import quaternion as quat
     from robot_retarget.motion.human_motion import load_motion
     from robot_retarget.robot.loader import load_robot_config
 
