@@ -52,12 +52,12 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     from robot_retarget.sources import wire
     from robot_retarget.sources.udp import UdpSource
 
+    if args.frames < 1 or args.warmup < 0:
+        raise ValueError("--frames must be ≥ 1 and --warmup ≥ 0")
     if args.source == "2d":
         from robot_retarget.pipeline.benchmark_2d import run_2d
 
         return run_2d(args)
-    if args.frames < 1 or args.warmup < 0:
-        raise ValueError("--frames must be ≥ 1 and --warmup ≥ 0")
     config = load_robot_config(args.robot)
     rate = config.control_rate_hz
     dt = 1.0 / rate

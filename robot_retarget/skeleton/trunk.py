@@ -36,6 +36,8 @@ def trunk_frames(hip_axis: npt.ArrayLike, trunk: npt.ArrayLike) -> FloatArray:
     left = h - up * np.sum(h * up, axis=-1, keepdims=True)
     fallback = _LEFT - up * np.sum(_LEFT * up, axis=-1, keepdims=True)
     left = _unit(left, _unit(fallback, np.cross(up, np.array([0.0, 0.0, 1.0]))))
+    # A second pass: with the hips nearly along the trunk the first leaves ~1e-8 of up in left.
+    left = _unit(left - up * np.sum(left * up, axis=-1, keepdims=True), left)
     fwd = np.cross(left, up)
     return np.stack([fwd, left, up], axis=-1)
 
@@ -54,6 +56,10 @@ def trunk_frame(hip_axis: FloatArray, trunk: FloatArray) -> FloatArray:
     m = math.sqrt(lx * lx + ly * ly + lz * lz)
     if not m > _EPS:
         return trunk_frames(hip_axis, trunk)
+    lx, ly, lz = lx / m, ly / m, lz / m
+    d = lx * ux + ly * uy + lz * uz  # second pass, as in trunk_frames
+    lx, ly, lz = lx - d * ux, ly - d * uy, lz - d * uz
+    m = math.sqrt(lx * lx + ly * ly + lz * lz)
     lx, ly, lz = lx / m, ly / m, lz / m
     # forward = left × up
     fx, fy, fz = ly * uz - lz * uy, lz * ux - lx * uz, lx * uy - ly * ux

@@ -24,5 +24,5 @@ def test_records_per_stage(positions: bool) -> None:
 
 def test_bad_frame_count() -> None:
     with pytest.raises(ValueError, match="frames"):
-        benchmark.run(argparse.Namespace(frames=0, warmup=0, robot="op3", model=None,
+        benchmark.run(argparse.Namespace(frames=0, warmup=0, robot="op3", model=None, source="3d",
                                          positions=False))  # fmt: skip
