@@ -15,7 +15,8 @@ elevation −10…45°, distance and focal length at random, never these on thes
 
 Scores as eval-robot's pipeline column (robot_retarget.evaluation.robot): per evaluation
 frame (10 fps) the angle between each of the 9 human and robot segment directions (upper arms,
-forearms, thighs, shins, torso) in the body frame, robot standing upright, averaged over
+forearms, thighs, shins, torso) in the body frame, the robot on its trajectory's floating base
+(its trunk follows the lifted performer's), averaged over
 segments and frames weighted by clip duration; joint-limit and joint-speed violations over
 every control frame.
 """
@@ -29,9 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_retarget.array_types import FloatArray
 from robot_retarget.evaluation.robot.metrics import segment_angles, trajectory_stats
-from robot_retarget.evaluation.robot.runner import PipelineFn, pipeline_runner
+from robot_retarget.evaluation.robot.runner import PipelineFn, PipelineRun, pipeline_runner
 from robot_retarget.evaluation.robot.segments import RobotBodyModel, human_body_points
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.lift import lift_keypoints
@@ -118,13 +118,18 @@ class Scorer:
         self.rate = float(config.control_rate_hz)
         self.stride = max(1, round(self.rate / eval_fps))
 
-    def score(self, truth: HumanMotion, q: FloatArray) -> tuple[float, float, float, int, int]:
-        """(direction °, limb direction °, seconds, limit violations, speed violations)."""
+    def score(self, truth: HumanMotion, run: PipelineRun) -> tuple[float, float, float, int, int]:
+        """(direction °, limb direction °, seconds, limit violations, speed violations); the
+        robot stands on the run's floating base (its trajectory's ``root_quat``) when it has
+        one, as eval-robot scores the pipeline, else upright."""
+        q = run.q
         human = truth.resample(self.rate)
         pos = human.positions()
         n = min(pos.shape[0], q.shape[0])
         idx = np.arange(0, n, self.stride)
-        ang = np.degrees(segment_angles(human_body_points(pos[idx]), self.body.body_points(q[idx])))
+        base = None if run.root_quat is None else quat.to_matrix(run.root_quat[idx])
+        robot = self.body.body_points(q[idx], base)
+        ang = np.degrees(segment_angles(human_body_points(pos[idx]), robot))
         stats = trajectory_stats(self.config, q[:n], self.rate)
         return (
             float(ang.mean()),
@@ -155,7 +160,7 @@ def evaluate_2d(
     rows = report.rows
     for k, (name, path) in enumerate(clips):
         truth = load_motion(path, max_frames=max_frames)
-        rows.setdefault("3d", InputScore()).add(*scorer.score(truth, run(truth).q))
+        rows.setdefault("3d", InputScore()).add(*scorer.score(truth, run(truth)))
         for elevation in ELEVATIONS_DEG:
             for azimuth in AZIMUTHS_DEG:
                 cam = _camera(elevation, azimuth)
@@ -163,7 +168,7 @@ def evaluate_2d(
                 seq = keypoints_of(truth, cam, rng, noise)
                 for causal, label in ((False, "2d clip"), (True, "2d stream")):
                     lifted = world_heading(lift_keypoints(seq, keypoint_model, causal=causal), cam)
-                    scores = scorer.score(truth, run(lifted).q)
+                    scores = scorer.score(truth, run(lifted))
                     rows.setdefault(f"{label} @ {elevation:g}°", InputScore()).add(*scores)
                     rows.setdefault(label, InputScore()).add(*scores)
         if progress is not None:
