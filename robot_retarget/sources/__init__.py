@@ -88,7 +88,7 @@ def open_source(
             DEFAULT_KEYPOINT_PORT,
             UdpKeypointSource,
         )
-        from robot_retarget.sources.udp import check_bind_address
+        from robot_retarget.sources.udp_datagram import check_bind_address
 
         host, port = _host_port(spec, DEFAULT_KEYPOINT_PORT)
         check_bind_address(host, allow_remote, "UDP bind")  # before loading anything

@@ -31,7 +31,7 @@ from robot_retarget.sources.base import (
     SourceFrame,
 )
 from robot_retarget.sources.socket_source import SocketSource
-from robot_retarget.sources.udp import check_bind_address
+from robot_retarget.sources.udp_datagram import check_bind_address
 
 MAX_HEADER_BYTES = 1 << 20
 MAX_LINE_BYTES = 1 << 16

@@ -10,7 +10,8 @@ from robot_retarget.errors import SourceError
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.sources import wire
 from robot_retarget.sources.base import SourceFrame
-from robot_retarget.sources.udp import UdpSource, is_loopback
+from robot_retarget.sources.udp import UdpSource
+from robot_retarget.sources.udp_datagram import is_loopback
 
 
 def _wait_frames(src: UdpSource, count: int, timeout_s: float = 3.0) -> list[SourceFrame]:

@@ -15,34 +15,30 @@ then goes to the safe pose, as when a sender falls silent.
 
 from __future__ import annotations
 
-import hmac
-import socket
 import time
 from collections.abc import Callable
 
 import numpy as np
 
-from robot_retarget.errors import SourceError
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, NUM_KEYPOINTS
 from robot_retarget.keypoints.lift import MIN_BODY_POINTS, standing_root
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
-from robot_retarget.skeleton.skeleton import Skeleton
-from robot_retarget.sources.base import DEFAULT_QUEUE_FRAMES, SequenceFilter, SourceFrame
+from robot_retarget.sources.base import DEFAULT_QUEUE_FRAMES, SourceFrame
 from robot_retarget.sources.keypoints.person_choice import PersonTracker
 from robot_retarget.sources.keypoints.wire import decode_keypoints
-from robot_retarget.sources.socket_source import SocketSource
-from robot_retarget.sources.udp import check_bind_address
+from robot_retarget.sources.udp_datagram import UdpDatagramSource
 from robot_retarget.sources.wire import WireError
 
 DEFAULT_KEYPOINT_PORT = 9751
 _BODY = np.array(sorted(BODY_JOINTS), dtype=np.int64)
-_RECV_BYTES = 65536
 
 
-class UdpKeypointSource(SocketSource):
+class UdpKeypointSource(UdpDatagramSource):
     """Receives COCO-17 packets on ``host:port`` (port 0: any free port)."""
+
+    SCHEME = "udp-keypoints"
 
     def __init__(
         self,
@@ -57,62 +53,20 @@ class UdpKeypointSource(SocketSource):
         max_queue: int = DEFAULT_QUEUE_FRAMES,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        check_bind_address(host, allow_remote, "UDP bind")
-        self.host = host
-        self.port = port
-        self.token = token
+        super().__init__(
+            host,
+            port,
+            token=token,
+            allow_remote=allow_remote,
+            skeleton=default_canonical_skeleton(),
+            nominal_fps=nominal_fps,
+            max_queue=max_queue,
+            clock=clock,
+        )
         self.min_confidence = min_confidence
-        super().__init__(max_queue)
-        self._skeleton = default_canonical_skeleton()
         self._root = standing_root(self._skeleton)
-        self._fps = nominal_fps
-        self._clock = clock
-        self._filter = SequenceFilter(self.stats)
         self._tracker = PersonTracker()
         self._step = model.online()
-
-    @property
-    def skeleton(self) -> Skeleton:
-        return self._skeleton
-
-    @property
-    def nominal_fps(self) -> float:
-        return self._fps
-
-    @property
-    def address(self) -> tuple[str, int]:
-        if self._sock is None:
-            return (self.host, self.port)
-        host, port = self._sock.getsockname()[:2]
-        return (str(host), int(port))
-
-    def describe(self) -> str:
-        host, port = self.address
-        return f"udp-keypoints://{host}:{port}" + (" (token required)" if self.token else "")
-
-    def start(self) -> None:
-        family = socket.AF_INET6 if ":" in self.host else socket.AF_INET
-        sock = socket.socket(family, socket.SOCK_DGRAM)
-        try:
-            sock.bind((self.host, self.port))
-        except OSError as exc:
-            sock.close()
-            raise SourceError(
-                f"cannot bind UDP {self.host}:{self.port} ({exc}); is another stream running? "
-                "choose another port"
-            ) from exc
-        self._start_receiver(sock, "udp-keypoint-source")
-
-    def _run(self) -> None:
-        sock = self._sock
-        while sock is not None and not self._stop.is_set():
-            try:
-                data = sock.recv(_RECV_BYTES)
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            self.handle_packet(data, self._clock())
 
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
         """Decode, check and lift one datagram; queue and return the frame, or count the drop."""
@@ -122,8 +76,7 @@ class UdpKeypointSource(SocketSource):
         except WireError as exc:
             self.stats.drop(exc.reason)
             return None
-        if self.token and not hmac.compare_digest(pkt.token.encode(), self.token.encode()):
-            self.stats.drop("auth")
+        if not self._authorised(pkt.token):
             return None
         if not self._filter.accept(pkt.seq, pkt.t_s):
             return None
@@ -139,7 +92,4 @@ class UdpKeypointSource(SocketSource):
             # and, after 2 s, goes to the safe pose, as for a silent sender.
             self.stats.drop("no_person")
             return None
-        frame = SourceFrame(local, self._root.copy(), pkt.t_s, pkt.seq, recv_s)
-        self.stats.accepted += 1
-        self._queue.put(frame)
-        return frame
+        return self._deliver(SourceFrame(local, self._root.copy(), pkt.t_s, pkt.seq, recv_s))
