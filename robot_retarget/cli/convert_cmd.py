@@ -11,6 +11,13 @@ outputs share a path, existing outputs are kept unless --force, a file's folder 
 be writable (folder outputs are created). A clip's outputs are written atomically, all or none.
 A clip that fails is reported and the others still convert; the exit code is 1 when any clip
 failed.
+
+``--workers N`` (folder input) converts the clips on N workers, on Ray for N > 1 (the
+``[scale]`` extra; ``--ray-address`` joins an existing cluster), with a manifest in the output
+folder that makes a re-run skip the clips already done and retry the ones that failed
+(robot_retarget.pipeline.batch_convert, clip_pool, manifest). Every clip goes through the same
+:class:`~robot_retarget.pipeline.clip_converter.ClipConverter` either way, so the files are the
+same bit for bit (all but ``frame_ms``, the measured compute time per frame).
 """
 
 from __future__ import annotations
@@ -18,12 +25,18 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 from typing import TextIO
 
 from robot_retarget.errors import MotionFormatError, RetargetError
+from robot_retarget.pipeline.clip_converter import (
+    ClipConverter,
+    ClipJob,
+    ClipReport,
+    ConvertOptions,
+)
 
 NAME = "convert"
 HELP = "Retarget BVH clip(s) to a robot trajectory (.npz/.csv/.json), preview, robot BVH."
@@ -67,19 +80,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="prepend the move from the robot's init pose to the first frame at 25 %% of the "
         "velocity limits (the stream's ramp speed), stamped before t = 0 (t0 < 0)",
     )
-
-
-@dataclass(frozen=True)
-class ClipReport:
-    clip: Path
-    out: Path
-    frames: int = 0
-    wall_s: float = 0.0
-    limits_ok: bool = False
-    clipped_commands: int = 0
-    clipped_joints: int = 0
-    fallbacks: int = 0
-    error: str | None = None
+    parser.add_argument(
+        "--workers",
+        type=int,
+        help="folder input: convert clips on N workers (Ray, the [scale] extra, for N > 1) with "
+        "a manifest in the output folder: a re-run skips clips already done, retries failed ones",
+    )
+    parser.add_argument(
+        "--ray-address",
+        help="folder input: run the clips on an existing Ray cluster (ray://HOST:10001 or auto)",
+    )
 
 
 class ProgressBar:
@@ -115,18 +125,14 @@ def _extra_path(base: Path | None, clip: Path, root: Path, suffix: str) -> Path 
     return base
 
 
-@dataclass(frozen=True)
-class _Job:
-    clip: Path
-    out: Path
-    preview: Path | None
-    bvh_out: Path | None
-
-
-def _plan(args: argparse.Namespace) -> list[_Job]:
+def _plan(
+    args: argparse.Namespace, replaceable: Callable[[Path], bool] | None = None
+) -> list[ClipJob]:
     """Every clip with its outputs, all checked before any work (robot_retarget.cli.
     output_paths): suffixes, no output on an input or on another output, no overwrite
-    without --force, writable folders (folder outputs are created when missing)."""
+    without --force, writable folders (folder outputs are created when missing).
+    ``replaceable(clip)``: the clip's existing outputs may be replaced without --force (they
+    belong to an earlier run of the same job, as its manifest says)."""
     from robot_retarget.cli.output_paths import Output, check_folder, check_outputs
     from robot_retarget.pipeline.convert import output_paths
     from robot_retarget.render.preview import FORMATS as PREVIEW_FORMATS
@@ -142,12 +148,15 @@ def _plan(args: argparse.Namespace) -> list[_Job]:
     pairs = [(src, args.out)] if keypoints else output_paths(src, args.out, suffix)
     if not pairs:
         raise MotionFormatError("no .bvh files in this folder", path=src)
+    owned = replaceable or (lambda _clip: False)
     jobs = [
-        _Job(
+        ClipJob(
             clip,
             out,
             _extra_path(args.preview, clip, src, ".gif"),
             _extra_path(args.bvh_out, clip, src, ".bvh"),
+            force=args.force or owned(clip),
+            make_folders=folder,
         )
         for clip, out in pairs
     ]
@@ -157,114 +166,126 @@ def _plan(args: argparse.Namespace) -> list[_Job]:
             if base is not None:
                 check_folder(base, option=option, create=True)
     outputs: list[Output] = []
+    theirs: list[Output] = []  # outputs no earlier run of this job made
     for job in jobs:
-        outputs.append(Output("--out", job.out, _FORMATS, make_folders=folder))
+        mine = [Output("--out", job.out, _FORMATS, make_folders=folder)]
         if job.preview is not None:
-            outputs.append(Output("--preview", job.preview, PREVIEW_FORMATS, folder))
+            mine.append(Output("--preview", job.preview, PREVIEW_FORMATS, folder))
         if job.bvh_out is not None:
-            outputs.append(Output("--bvh-out", job.bvh_out, (".bvh",), folder))
-    check_outputs(outputs, inputs=[job.clip for job in jobs], force=args.force)
+            mine.append(Output("--bvh-out", job.bvh_out, (".bvh",), folder))
+        outputs += mine
+        if not owned(job.clip):
+            theirs += mine
+    inputs = [job.clip for job in jobs]
+    if len(theirs) == len(outputs):
+        check_outputs(outputs, inputs=inputs, force=args.force)
+    else:
+        check_outputs(outputs, inputs=inputs, force=True)
+        check_outputs(theirs, inputs=inputs, force=args.force)
     if jobs[0].preview is not None:
         check_preview_path(jobs[0].preview, overwrite=True)  # MP4 needs ffmpeg
     return jobs
 
 
-def run(args: argparse.Namespace) -> int:
-    from robot_retarget.cli.output_paths import StagedWrites
-    from robot_retarget.keypoints.lift import load_keypoint_motion
-    from robot_retarget.motion.human_motion import load_motion
-    from robot_retarget.pipeline.convert import convert_motion
+def _options(args: argparse.Namespace) -> ConvertOptions:
     from robot_retarget.pipeline.defaults import default_model_name
-    from robot_retarget.pipeline.robot_bvh import write_robot_bvh
-    from robot_retarget.pipeline.step import RetargetStep
-    from robot_retarget.render.preview import render_preview
-    from robot_retarget.robot.loader import load_robot_config
-    from robot_retarget.runtime.loader import load_runtime_model
-    from robot_retarget.skeleton.canonical import default_canonical_skeleton
-    from robot_retarget.sources.keypoints import is_keypoint_input
 
+    return ConvertOptions(
+        robot=args.robot,
+        model=args.model or default_model_name(),
+        fps=args.fps,
+        max_frames=args.max_frames,
+        lead_in=args.lead_in,
+        keypoint_model=args.keypoint_model,
+        keypoint_fps=args.keypoint_fps,
+    )
+
+
+def run(args: argparse.Namespace) -> int:
     if args.fps is not None and not args.fps > 0:
         raise RetargetError(f"--fps must be positive, got {args.fps}")
+    if args.workers is not None or args.ray_address is not None:
+        return _run_batch(args)
     jobs = _plan(args)
-    folder = args.input.is_dir() and not is_keypoint_input(args.input)
-    config = load_robot_config(args.robot)
-    model = load_runtime_model(args.model or default_model_name())
-    print(f"robot {config.name}, model {model.name}, {len(jobs)} clip(s)", file=sys.stderr)
-    step = RetargetStep(config, model, default_canonical_skeleton())
+    converter = ClipConverter(_options(args))
+    print(
+        f"robot {converter.config.name}, model {converter.model.name}, {len(jobs)} clip(s)",
+        file=sys.stderr,
+    )
     reports: list[ClipReport] = []
     t_all = time.perf_counter()
     for k, job in enumerate(jobs):
-        clip, out = job.clip, job.out
-        try:
-            if is_keypoint_input(clip):
-                lifted = load_keypoint_motion(
-                    clip,
-                    model=args.keypoint_model,
-                    fps=args.keypoint_fps,
-                    max_frames=args.max_frames,
-                )
-                motion = lifted.motion
-                print(
-                    f"{clip}: {motion.num_frames} keypoint frames at {motion.fps:g} fps, "
-                    f"{lifted.missing_fraction:.1%} of points missing, {lifted.frames_held} "
-                    "frame(s) without a body (the last seen pose held)",
-                    file=sys.stderr,
-                )
-            else:
-                motion = load_motion(clip, max_frames=args.max_frames)
-            label = f"[{k + 1}/{len(jobs)}] {clip.name}"
-            result = convert_motion(
-                motion,
-                step,
-                fps=args.fps,
-                progress=ProgressBar(label),
-                lead_in_speed_fraction=0.25 if args.lead_in else None,
-            )
-            traj = result.trajectory
-            # All of a clip's outputs, or none: each is written to a temporary file next to
-            # it and moved into place only when every one of them has been written.
-            with StagedWrites(force=args.force) as stage:
-                stage.write(
-                    out, partial(traj.write, overwrite=True), option="--out", make_folders=folder
-                )
-                if job.bvh_out is not None:
-                    stage.write(
-                        job.bvh_out,
-                        partial(write_robot_bvh, config=config, trajectory=traj, overwrite=True),
-                        option="--bvh-out",
-                        make_folders=folder,
-                    )
-                if job.preview is not None:
-                    stage.write(
-                        job.preview,
-                        partial(
-                            render_preview,
-                            human_positions=motion.positions(),
-                            human_fps=motion.fps,
-                            config=config,
-                            robot_q=traj.q,
-                            robot_fps=traj.fps,
-                            title=f"{clip.name} → {config.name} ({model.name})",
-                            overwrite=True,
-                        ),
-                        option="--preview",
-                        make_folders=folder,
-                    )
-            reports.append(
-                ClipReport(
-                    clip,
-                    out,
-                    result.frames,
-                    result.wall_s,
-                    result.limits.ok,
-                    result.safety_commands_clipped,
-                    result.safety_joint_clips,
-                    result.fallbacks,
-                )
-            )
-        except (RetargetError, OSError, ValueError) as exc:
-            print(f"error: {clip}: {exc}", file=sys.stderr)
-            reports.append(ClipReport(clip, out, error=str(exc)))
+        report = converter.convert(
+            job,
+            ProgressBar(f"[{k + 1}/{len(jobs)}] {job.clip.name}"),
+            log=partial(print, file=sys.stderr),
+        )
+        if report.error is not None:
+            print(f"error: {job.clip}: {report.error}", file=sys.stderr)
+        reports.append(report)
+    print(format_summary(reports, time.perf_counter() - t_all))
+    return 1 if any(r.error for r in reports) else 0
+
+
+def _run_batch(args: argparse.Namespace) -> int:
+    """A folder on a pool of workers (Ray for more than one, or for --ray-address), with a
+    manifest in the output folder: a re-run skips what is done and retries what failed."""
+    from robot_retarget.pipeline.batch_convert import clip_key, plan_batch, run_batch
+    from robot_retarget.pipeline.clip_pool import LocalClipPool, RayClipPool, import_ray
+    from robot_retarget.pipeline.manifest import Manifest
+    from robot_retarget.sources.keypoints import is_keypoint_input
+
+    workers = 1 if args.workers is None else args.workers
+    if workers < 1:
+        raise RetargetError(f"--workers must be at least 1, got {workers}")
+    on_ray = workers > 1 or args.ray_address is not None
+    if on_ray:
+        import_ray(workers)  # before any work: says how to install the [scale] extra
+    src: Path = args.input
+    if not src.is_dir() or is_keypoint_input(src):
+        raise RetargetError(
+            f"--workers and --ray-address convert a folder of BVH clips; {src} is not one: "
+            "run without them"
+        )
+    options = _options(args)
+    settings = {
+        "robot": options.robot,
+        "model": options.model,
+        "fps": options.fps,
+        "max_frames": options.max_frames,
+        "lead_in": options.lead_in,
+        "format": args.format,
+    }
+    manifest = Manifest.open(args.out, settings, fresh=args.force)
+    jobs = _plan(args, lambda clip: manifest.owns(clip_key(clip, src)))
+    plan = plan_batch(jobs, src, manifest)
+    where = f"Ray at {args.ray_address}" if args.ray_address else f"{workers} worker(s)"
+    print(
+        f"robot {options.robot}, model {options.model}, {len(jobs)} clip(s): "
+        f"{len(plan.skipped)} already done (manifest {manifest.path}), "
+        f"{len(plan.todo)} to convert on {where}",
+        file=sys.stderr,
+    )
+    bar = ProgressBar(f"convert on {where}")
+    done = 0
+
+    def report(r: ClipReport) -> None:
+        nonlocal done
+        done += 1
+        if r.error is not None:
+            print(f"error: {r.clip}: {r.error}", file=sys.stderr)
+        bar(done, len(plan.todo))
+
+    reports: list[ClipReport] = []
+    t_all = time.perf_counter()
+    if plan.todo:
+        pool = RayClipPool(options, workers, args.ray_address) if on_ray else LocalClipPool(options)
+        with pool:
+            print(f"workers ready in {pool.startup_s:.1f} s", file=sys.stderr)
+            t_all = time.perf_counter()
+            reports = run_batch(plan, manifest, pool, report)
+    order = {job.clip: k for k, job in enumerate(plan.todo)}
+    reports.sort(key=lambda r: order[r.clip])
     print(format_summary(reports, time.perf_counter() - t_all))
     return 1 if any(r.error for r in reports) else 0
 

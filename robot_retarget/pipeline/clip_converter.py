@@ -1,0 +1,173 @@
+"""One clip → its output files: what ``convert`` does per clip, in one process or a Ray worker.
+
+A :class:`ClipConverter` holds one robot config, one model and one :class:`RetargetStep` (its
+JIT-compiled solver built, or loaded from the disk cache, once) and converts clip after clip
+with it; a clip's result does not depend on the clips converted before it (the step is reset
+per clip), so any split of a folder over workers gives the same files. A clip's outputs are
+written atomically, all or none (robot_retarget.cli.output_paths.StagedWrites); a clip that
+cannot be read or converted comes back as a :class:`ClipReport` with its error, never raised.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+
+from robot_retarget.errors import RetargetError
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True)
+class ConvertOptions:
+    """The per-clip settings of a ``convert`` run (the same for every clip of a job)."""
+
+    robot: str
+    model: str
+    fps: float | None = None
+    max_frames: int | None = None
+    lead_in: bool = False
+    keypoint_model: str | None = None
+    keypoint_fps: float | None = None
+
+
+@dataclass(frozen=True)
+class ClipJob:
+    """A clip and its outputs. ``force``: an existing output may be replaced;
+    ``make_folders``: its outputs lie under a folder output whose subfolders may be created."""
+
+    clip: Path
+    out: Path
+    preview: Path | None = None
+    bvh_out: Path | None = None
+    force: bool = False
+    make_folders: bool = False
+
+    def outputs(self) -> list[Path]:
+        return [p for p in (self.out, self.bvh_out, self.preview) if p is not None]
+
+
+@dataclass(frozen=True)
+class ClipReport:
+    """What became of one clip: its frame count, compute time and fidelity figures (limits
+    respected, safety-layer clips, solver fallbacks), or the error that stopped it."""
+
+    clip: Path
+    out: Path
+    frames: int = 0
+    wall_s: float = 0.0
+    limits_ok: bool = False
+    clipped_commands: int = 0
+    clipped_joints: int = 0
+    fallbacks: int = 0
+    error: str | None = None
+    position_excess_rad: float = 0.0
+    velocity_excess_rad: float = 0.0
+
+
+class ClipConverter:
+    """Converts clips for one robot and model; build once per process (the solver is costly),
+    then call :meth:`convert` per clip."""
+
+    def __init__(self, options: ConvertOptions) -> None:
+        from robot_retarget.pipeline.step import RetargetStep
+        from robot_retarget.robot.loader import load_robot_config
+        from robot_retarget.runtime.loader import load_runtime_model
+        from robot_retarget.skeleton.canonical import default_canonical_skeleton
+
+        self.options = options
+        self.config = load_robot_config(options.robot)
+        self.model = load_runtime_model(options.model)
+        self.step = RetargetStep(self.config, self.model, default_canonical_skeleton())
+
+    def convert(
+        self,
+        job: ClipJob,
+        progress: Progress | None = None,
+        *,
+        log: Callable[[str], None] | None = None,
+    ) -> ClipReport:
+        """Convert ``job.clip`` and write its outputs; errors come back in the report.
+        ``log``: where a keypoint clip's input summary goes (the CLI prints it)."""
+        try:
+            return self._convert(job, progress, log)
+        except (RetargetError, OSError, ValueError) as exc:
+            return ClipReport(job.clip, job.out, error=str(exc))
+
+    def _convert(
+        self, job: ClipJob, progress: Progress | None, log: Callable[[str], None] | None
+    ) -> ClipReport:
+        from robot_retarget.cli.output_paths import StagedWrites
+        from robot_retarget.keypoints.lift import load_keypoint_motion
+        from robot_retarget.motion.human_motion import load_motion
+        from robot_retarget.pipeline.convert import convert_motion
+        from robot_retarget.pipeline.robot_bvh import write_robot_bvh
+        from robot_retarget.render.preview import render_preview
+        from robot_retarget.sources.keypoints import is_keypoint_input
+
+        opt, config, clip = self.options, self.config, job.clip
+        if is_keypoint_input(clip):
+            lifted = load_keypoint_motion(
+                clip, model=opt.keypoint_model, fps=opt.keypoint_fps, max_frames=opt.max_frames
+            )
+            motion = lifted.motion
+            if log is not None:
+                log(
+                    f"{clip}: {motion.num_frames} keypoint frames at {motion.fps:g} fps, "
+                    f"{lifted.missing_fraction:.1%} of points missing, {lifted.frames_held} "
+                    "frame(s) without a body (the last seen pose held)"
+                )
+        else:
+            motion = load_motion(clip, max_frames=opt.max_frames)
+        result = convert_motion(
+            motion,
+            self.step,
+            fps=opt.fps,
+            progress=progress,
+            lead_in_speed_fraction=0.25 if opt.lead_in else None,
+        )
+        traj = result.trajectory
+        folders = job.make_folders
+        # All of a clip's outputs, or none: each is written to a temporary file next to it and
+        # moved into place only when every one of them has been written.
+        with StagedWrites(force=job.force) as stage:
+            stage.write(
+                job.out, partial(traj.write, overwrite=True), option="--out", make_folders=folders
+            )
+            if job.bvh_out is not None:
+                stage.write(
+                    job.bvh_out,
+                    partial(write_robot_bvh, config=config, trajectory=traj, overwrite=True),
+                    option="--bvh-out",
+                    make_folders=folders,
+                )
+            if job.preview is not None:
+                stage.write(
+                    job.preview,
+                    partial(
+                        render_preview,
+                        human_positions=motion.positions(),
+                        human_fps=motion.fps,
+                        config=config,
+                        robot_q=traj.q,
+                        robot_fps=traj.fps,
+                        title=f"{clip.name} → {config.name} ({self.model.name})",
+                        overwrite=True,
+                    ),
+                    option="--preview",
+                    make_folders=folders,
+                )
+        return ClipReport(
+            clip,
+            job.out,
+            frames=result.frames,
+            wall_s=result.wall_s,
+            limits_ok=result.limits.ok,
+            clipped_commands=result.safety_commands_clipped,
+            clipped_joints=result.safety_joint_clips,
+            fallbacks=result.fallbacks,
+            position_excess_rad=result.limits.position_excess_rad,
+            velocity_excess_rad=result.limits.velocity_excess_rad,
+        )
