@@ -1,0 +1,70 @@
+"""Scene pieces shared by the recorded and the live page: world set-up and a stick figure.
+
+Everything here takes the viser server as an argument; callers get the server from
+:func:`robot_retarget.viewer.dependency.require_viser`, so importing this module never
+imports viser.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+ROBOT_RGB: tuple[int, int, int] = (255, 110, 0)  # orange: the browser test looks for it
+PERFORMER_RGB: tuple[int, int, int] = (40, 110, 230)
+MEASURED_RGB: tuple[int, int, int] = (60, 170, 60)
+
+
+def setup_world(server: Any, *, size_m: float, look_at: npt.ArrayLike, view_m: float) -> None:
+    """Z-up world, a ground grid ``size_m`` across and a camera that frames a box ``view_m``
+    across around ``look_at``."""
+    server.scene.set_up_direction("+z")
+    cell = 0.1 if size_m < 4.0 else 0.5
+    server.scene.add_grid(
+        "/ground", width=size_m, height=size_m, plane="xy", cell_size=cell, section_size=5 * cell
+    )
+    target = np.asarray(look_at, dtype=np.float64)
+    reach = max(0.7 * view_m, 0.3)
+    server.initial_camera.look_at = tuple(target)
+    server.initial_camera.position = tuple(target + np.array([1.2, -1.6, 0.6]) * reach)
+
+
+class StickFigure:
+    """Line segments and joint dots under one scene node, moved frame by frame."""
+
+    def __init__(
+        self,
+        server: Any,
+        name: str,
+        segments: npt.ArrayLike,
+        rgb: tuple[int, int, int],
+        *,
+        thickness_m: float,
+    ) -> None:
+        seg = np.asarray(segments, dtype=np.float32)
+        self._links = server.scene.add_line_segments(
+            f"{name}/links", points=seg, colors=rgb, thickness=thickness_m
+        )
+        self._joints = server.scene.add_point_cloud(
+            f"{name}/joints",
+            points=seg.reshape(-1, 3),
+            colors=rgb,
+            point_size=1.6 * thickness_m,
+            point_shape="circle",
+        )
+
+    def update(self, segments: npt.ArrayLike) -> None:
+        seg = np.asarray(segments, dtype=np.float32)
+        self._links.points = seg
+        self._joints.points = seg.reshape(-1, 3)
+
+    @property
+    def visible(self) -> bool:
+        return bool(self._links.visible)
+
+    @visible.setter
+    def visible(self, value: bool) -> None:
+        self._links.visible = value
+        self._joints.visible = value
