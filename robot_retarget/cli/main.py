@@ -29,6 +29,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("eval-robot", "robot_retarget.cli.eval_robot_cmd", "Score the pipeline on a robot."),
     ("bench", "robot_retarget.cli.bench_cmd", "Speed benchmarks: solve, loop, model, pipeline."),
     ("export", "robot_retarget.cli.export_cmd", "Export a checkpoint to its numpy runtime."),
+    ("view", "robot_retarget.cli.view_cmd", "Show a trajectory and its clip in a browser."),
 )
 
 
