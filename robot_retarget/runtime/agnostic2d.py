@@ -15,7 +15,6 @@ dotted name (``motion.0.0`` = first motion layer's kernel, ``motion.0.1`` its bi
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,11 +31,11 @@ from robot_retarget.keypoints.normalize import (
     KeypointNormalizer,
     normalize_sequences,
 )
+from robot_retarget.runtime.npz_file import read_runtime_npz, write_runtime_npz
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, MIRROR_PAIRS
 
 ARCHITECTURE = "agnostic2d"
 FORMAT_VERSION = 1
-_META = "__meta__"
 _J = len(CANONICAL_JOINTS)
 _SLOPE = 0.2
 Conv = tuple[FloatArray, FloatArray]  # kernel (out, in, k), bias (out,)
@@ -275,28 +274,13 @@ def save_agnostic2d(model: Agnostic2DRuntime, path: str | os.PathLike[str]) -> P
         "data_hash": model.data_hash,
         "metadata": model.metadata,
     }
-    arrays[_META] = np.array(json.dumps(meta, default=str))
-    with out.open("wb") as fh:
-        np.savez(fh, allow_pickle=False, **arrays)
-    return out
+    return write_runtime_npz(out, arrays, meta)
 
 
 def load_agnostic2d(path: str | os.PathLike[str]) -> Agnostic2DRuntime:
     """Read a runtime ``.npz``; ModelLoadError names the file and what is wrong."""
     p = Path(path)
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise ModelLoadError("keypoint model file not found", path=p) from None
-    except (OSError, ValueError) as exc:
-        raise ModelLoadError(f"not a runtime .npz file ({exc})", path=p) from None
-    if _META not in arrays:
-        raise ModelLoadError("runtime file has no __meta__ entry", path=p)
-    try:
-        meta = json.loads(str(arrays.pop(_META)))
-    except json.JSONDecodeError as exc:
-        raise ModelLoadError(f"runtime metadata is not JSON ({exc})", path=p) from None
+    arrays, meta = read_runtime_npz(p, "keypoint model file")
     if meta.get("architecture") != ARCHITECTURE or meta.get("format") != FORMAT_VERSION:
         raise ModelLoadError(
             f"not an {ARCHITECTURE} runtime of format {FORMAT_VERSION} (found "

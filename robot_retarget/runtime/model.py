@@ -17,7 +17,6 @@ architecture needs and says which one is wrong.
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -31,11 +30,11 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.runtime.copy import FastCopyRetargeter, rest_height_m
 from robot_retarget.runtime.frame import check_offsets
+from robot_retarget.runtime.npz_file import read_runtime_npz, write_runtime_npz
 from robot_retarget.runtime.pmnet import FastPMnetRetargeter, PMnetWeights
 from robot_retarget.runtime.residual import FastResidualRetargeter, ResidualWeights
 
 FORMAT_VERSION = 1
-_META = "__meta__"
 Weights = ResidualWeights | PMnetWeights
 
 
@@ -143,10 +142,7 @@ def save_runtime(model: RuntimeModel, path: str | os.PathLike[str]) -> Path:
         "data_hash": model.data_hash,
         "metadata": model.metadata,
     }
-    arrays[_META] = np.array(json.dumps(meta, default=str))
-    with out.open("wb") as fh:
-        np.savez(fh, allow_pickle=False, **arrays)
-    return out
+    return write_runtime_npz(out, arrays, meta)
 
 
 def _read_weights(kind: type[Weights], arrays: dict[str, np.ndarray], path: Path) -> Weights:
@@ -180,19 +176,7 @@ def _nested(name: str, arrays: dict[str, np.ndarray], path: Path) -> Any:
 def load_runtime(path: str | os.PathLike[str]) -> RuntimeModel:
     """Read a runtime ``.npz``; ModelLoadError names the file and what is wrong."""
     p = Path(path)
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise ModelLoadError("runtime file not found", path=p) from None
-    except (OSError, ValueError) as exc:
-        raise ModelLoadError(f"not a runtime .npz file ({exc})", path=p) from None
-    if _META not in arrays:
-        raise ModelLoadError("runtime file has no __meta__ entry (not exported by export)", path=p)
-    try:
-        meta = json.loads(str(arrays.pop(_META)))
-    except json.JSONDecodeError as exc:
-        raise ModelLoadError(f"runtime metadata is not JSON ({exc})", path=p) from None
+    arrays, meta = read_runtime_npz(p, "runtime file")
     if meta.get("format") != FORMAT_VERSION:
         raise ModelLoadError(
             f"runtime format {meta.get('format')!r}, this version reads {FORMAT_VERSION}; "
