@@ -13,7 +13,7 @@ import json
 from typing import Any, Protocol, cast
 
 NAME = "bench"
-HELP = "Speed benchmarks (median and p99): solve, loop, model, pipeline."
+HELP = "Speed benchmarks (median and p99): solve, loop, model, pipeline, convert."
 
 BenchRecord = dict[str, Any]
 
@@ -23,6 +23,7 @@ TARGETS: dict[str, str] = {
     "loop": "robot_retarget.hardware.benchmark",
     "model": "robot_retarget.nn.benchmark",
     "pipeline": "robot_retarget.pipeline.benchmark",
+    "convert": "robot_retarget.pipeline.convert_benchmark",
 }
 
 
