@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -26,3 +27,23 @@ class TimingStats:
             p99_ms=float(np.percentile(ms, 99)),
             mean_ms=float(ms.mean()),
         )
+
+
+def stage_records(
+    stages: Sequence[str], times: Mapping[str, Sequence[float]]
+) -> list[dict[str, Any]]:
+    """One record per stage, in ``stages`` order: median, p99 and mean ms of its durations
+    in seconds, and the number of runs (the rows ``bench`` prints)."""
+    records: list[dict[str, Any]] = []
+    for name in stages:
+        stats = TimingStats.from_seconds(times[name])
+        records.append(
+            {
+                "stage": name,
+                "median_ms": stats.median_ms,
+                "p99_ms": stats.p99_ms,
+                "mean_ms": stats.mean_ms,
+                "runs": stats.runs,
+            }
+        )
+    return records

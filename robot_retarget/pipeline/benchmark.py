@@ -15,7 +15,7 @@ import dataclasses
 import time
 from typing import Any
 
-from robot_retarget.bench_stats import TimingStats
+from robot_retarget.bench_stats import stage_records
 
 HELP = "Per-frame compute time of the live path: decode, network, targets, optimizer, safety."
 
@@ -98,16 +98,4 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
             spans = (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0)
             for name, d in zip(STAGES, spans, strict=True):
                 times[name].append(d)
-    records: list[dict[str, Any]] = []
-    for name in STAGES:
-        stats = TimingStats.from_seconds(times[name])
-        records.append(
-            {
-                "stage": name,
-                "median_ms": stats.median_ms,
-                "p99_ms": stats.p99_ms,
-                "mean_ms": stats.mean_ms,
-                "runs": stats.runs,
-            }
-        )
-    return records
+    return stage_records(STAGES, times)

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_retarget.bench_stats import TimingStats
+from robot_retarget.bench_stats import stage_records
 
 STAGES_2D: tuple[str, ...] = (
     "decode",
@@ -118,16 +118,4 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
             times["total"].append(t6 - t2 + arrived)
             if arrived:
                 times["total, tick with a camera frame"].append(t6 - t2 + arrived)
-    records: list[dict[str, Any]] = []
-    for name in STAGES_2D:
-        stats = TimingStats.from_seconds(times[name])
-        records.append(
-            {
-                "stage": name,
-                "median_ms": stats.median_ms,
-                "p99_ms": stats.p99_ms,
-                "mean_ms": stats.mean_ms,
-                "runs": stats.runs,
-            }
-        )
-    return records
+    return stage_records(STAGES_2D, times)
