@@ -26,3 +26,20 @@ def test_bad_frame_count() -> None:
     with pytest.raises(ValueError, match="frames"):
         benchmark.run(argparse.Namespace(frames=0, warmup=0, robot="op3", model=None, source="3d",
                                          positions=False))  # fmt: skip
+
+
+def test_records_per_stage_from_keypoints() -> None:
+    from robot_retarget.pipeline.benchmark_2d import STAGES_2D
+
+    parser = argparse.ArgumentParser()
+    benchmark.configure(parser)
+    records = benchmark.run(
+        parser.parse_args(["--source", "2d", "--frames", "40", "--warmup", "5"])
+    )
+    assert [r["stage"] for r in records] == list(STAGES_2D)
+    by_stage = {r["stage"]: r for r in records}
+    assert by_stage["network"]["runs"] == 40
+    # 125 Hz ticks, 30 fps camera: about one tick in four lifts a camera frame
+    assert 5 <= by_stage["total, tick with a camera frame"]["runs"] <= 15
+    for r in records:
+        assert 0 <= r["median_ms"] <= r["p99_ms"]
