@@ -205,7 +205,7 @@ class TrajectoryPage:
         scales: dict[str, uplot.Scale] = {"x": uplot.Scale(time=False)}  # seconds, not dates
         angle_plot = self.server.gui.add_uplot(
             angle,
-            (time_axis, uplot.Series(label="q (rad)", stroke="#ff6e00", width=1.5), limit, limit),
+            (time_axis, uplot.Series(label="q (rad)", stroke="#c85a00", width=1.5), limit, limit),
             title="angle (rad) and joint limits",
             scales=scales,
             aspect=2.0,
