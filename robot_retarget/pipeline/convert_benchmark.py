@@ -2,13 +2,17 @@
 
 The clips (``--clips`` of them, spread evenly over the sorted clips under ``--data``, their
 first ``--max-frames`` frames) are first converted in this process, one after another, as
-``convert`` without ``--workers`` does: the reference. Then, per worker count, a local Ray
-instance with that many CPUs and workers converts them again (robot_retarget.pipeline.
-clip_pool.RayClipPool). Start-up (Ray, the workers' solver loads) is timed on its own and left
-out of the throughput: frames/s is every clip's frames over the wall time from the first clip
-sent to the last clip back. Per clip: median and p99 of the conversion's compute seconds.
-Speed-up is over the first worker count. Every worker count's files must equal the reference's
-bit for bit (every array but ``frame_ms``, the measured compute time per frame).
+``convert`` without ``--workers`` does: the reference. Then, per worker count, that many Ray
+workers convert them again (robot_retarget.pipeline.clip_pool.RayClipPool) in one local Ray
+instance with as many CPUs as the largest count. Start-up is timed on its own (Ray's,
+``ray_init_s``; the workers' with their solver loads, ``startup_s``) and left out of the
+throughput: frames/s is every clip's frames over the wall time from the first clip sent to the
+last clip back. Per clip: median and p99 of the conversion's compute seconds. The worker
+counts run in ``--repeat`` interleaved rounds (1, 2, 1, 2, ...): frames/s is the median over
+the rounds, the speed-up the median (and range) of each round's ratio to the first worker
+count's run of the same round, which cancels slow drifts in the load of a shared machine.
+Every run's files must equal the reference's bit for bit (every array but ``frame_ms``, the
+measured compute time per frame).
 """
 
 from __future__ import annotations
@@ -36,6 +40,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--clips", type=int, default=20, help="clips to convert")
     parser.add_argument(
         "--max-frames", type=int, default=600, help="convert each clip's first N frames"
+    )
+    parser.add_argument(
+        "--repeat", type=int, default=3, help="rounds of every worker count, interleaved"
     )
     parser.add_argument(
         "--no-reference",
@@ -94,7 +101,7 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
         root = Path(tmp)
 
         def jobs(name: str) -> list[ClipJob]:
-            return [ClipJob(c, root / name / f"{k:03d}_{c.stem}.npz", make_folders=True)
+            return [ClipJob(c, root / name / f"{k:03d}_{c.stem}.npz", force=True, make_folders=True)
                     for k, c in enumerate(clips)]  # fmt: skip
 
         def record(mode: str, workers: int, startup_s: float, wall_s: float,
@@ -130,15 +137,41 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
                 reports = list(local.convert(jobs("reference")))
                 wall = time.perf_counter() - t0
             records.append(record("in-process", 1, local.startup_s, wall, reports, "reference"))
-        base: float | None = None
+        ray = import_ray(max(counts))
+        started_ray = not ray.is_initialized()
+        t0 = time.perf_counter()
+        if started_ray:  # once for every run: the pools join it, its start-up is not timed
+            ray.init(num_cpus=max(counts), include_dashboard=False, log_to_driver=False,
+                     logging_level="warning")  # fmt: skip
+        ray_init_s = time.perf_counter() - t0
+        runs: dict[int, list[dict[str, Any]]] = {w: [] for w in counts}
+        try:
+            for _ in range(args.repeat):  # interleaved: 1, 2, 1, 2, ... on a shared machine
+                for w in counts:
+                    name = f"ray{w}"
+                    with RayClipPool(options, w) as pool:
+                        t0 = time.perf_counter()
+                        reports = list(pool.convert(jobs(name)))
+                        wall = time.perf_counter() - t0
+                    runs[w].append(record("ray", w, pool.startup_s, wall, reports, name))
+        finally:
+            if started_ray:
+                ray.shutdown()
+        first = runs[counts[0]]
         for w in counts:
-            name = f"ray{w}"
-            with RayClipPool(options, w) as pool:
-                t0 = time.perf_counter()
-                reports = list(pool.convert(jobs(name)))
-                wall = time.perf_counter() - t0
-            rec = record("ray", w, pool.startup_s, wall, reports, name)
-            base = rec["frames_per_s"] if base is None else base
-            rec["speedup"] = rec["frames_per_s"] / base
+            by_fps = sorted(runs[w], key=lambda r: float(r["frames_per_s"]))
+            rec = dict(by_fps[len(by_fps) // 2])  # the median run's per-clip figures
+            rec["ray_init_s"] = ray_init_s
+            rec["runs"] = len(runs[w])
+            rec["frames_per_s"] = float(np.median([r["frames_per_s"] for r in runs[w]]))
+            rec["wall_s"] = float(np.median([r["wall_s"] for r in runs[w]]))
+            rec["bit_equal"] = all(r.get("bit_equal", True) for r in runs[w])
+            # Each run over the first count's run of the same round: load drifts between rounds.
+            ratios = [
+                r["frames_per_s"] / f["frames_per_s"] for r, f in zip(runs[w], first, strict=True)
+            ]
+            rec["speedup"] = float(np.median(ratios))
+            rec["speedup_min"] = float(min(ratios))
+            rec["speedup_max"] = float(max(ratios))
             records.append(rec)
     return records
