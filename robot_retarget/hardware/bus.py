@@ -19,6 +19,8 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+import numpy as np
+import numpy.typing as npt
 import serial
 
 from robot_retarget.errors import CommunicationError
@@ -33,6 +35,7 @@ _PORT_ERRORS = (serial.SerialException, OSError, termios.error, ValueError)
 
 # (servo error byte, data) per servo
 ReadResult = dict[int, tuple[int, bytes]]
+ByteArray = npt.NDArray[np.uint8]
 
 
 class PortUnavailableError(CommunicationError):
@@ -300,26 +303,52 @@ class DynamixelBus:
         self.write_packet(packet)
         return packet
 
-    def sync_read(
+    def sync_read_packet(
         self, address: int, size: int, ids: Sequence[int], *, fast: bool = False
-    ) -> ReadResult:
-        """Protocol 2.0 Sync Read (or Fast Sync Read: one combined reply) of ``ids``."""
+    ) -> bytes:
+        """The Protocol 2.0 (Fast) Sync Read request for ``ids``: build it once, send it often."""
         if not self._v2:
             raise CommunicationError("Sync Read needs Protocol 2.0; use bulk_read/read")
         params = p.le_bytes(address, 2) + p.le_bytes(size, 2) + bytes(ids)
         inst = p.INST_FAST_SYNC_READ if fast else p.INST_SYNC_READ
-        packet = p.build_v2(p.BROADCAST_ID, inst, params)
+        return p.build_v2(p.BROADCAST_ID, inst, params)
+
+    def sync_read(
+        self, address: int, size: int, ids: Sequence[int], *, fast: bool = False
+    ) -> ReadResult:
+        """Protocol 2.0 Sync Read (or Fast Sync Read: one combined reply) of ``ids``."""
+        packet = self.sync_read_packet(address, size, ids, fast=fast)
 
         def once() -> ReadResult:
             self.write_packet(packet)
             if fast:
-                return self._read_fast(ids, size)
+                errors, data = self._read_fast_block(ids, size)
+                return {
+                    sid: (int(e), row.tobytes())
+                    for sid, e, row in zip(ids, errors, data, strict=True)
+                }
             return self._read_status(ids, [size] * len(ids), "sync read")
 
         return self.transact(once, "fast sync read" if fast else "sync read")
 
-    def _read_fast(self, ids: Sequence[int], size: int) -> ReadResult:
-        total = 8 + len(ids) * (size + 4)
+    def sync_read_block(
+        self, packet: bytes, ids: Sequence[int], size: int, *, fast: bool
+    ) -> tuple[ByteArray, ByteArray]:
+        """Send a request from :meth:`sync_read_packet` and return (error byte per servo,
+        (N, size) data matrix), both in ``ids`` order; retried like every transaction."""
+
+        def once() -> tuple[ByteArray, ByteArray]:
+            self.write_packet(packet)
+            if fast:
+                return self._read_fast_block(ids, size)
+            result = self._read_status(ids, [size] * len(ids), "sync read")
+            return as_block(result, ids, size)
+
+        return self.transact(once, "fast sync read" if fast else "sync read")
+
+    def _read_fast_block(self, ids: Sequence[int], size: int) -> tuple[ByteArray, ByteArray]:
+        n = len(ids)
+        total = 8 + n * (size + 4)
         raw = self._read_exact(total, "fast sync read")
         if raw[:4] != p.HEADER_V2 or raw[4] != p.BROADCAST_ID or raw[7] != p.INST_STATUS:
             raise CommunicationError(f"bus {self.name}: fast sync read: bad reply header")
@@ -327,16 +356,17 @@ class DynamixelBus:
             raise CommunicationError(f"bus {self.name}: fast sync read: bad reply length")
         if p.crc16(raw[:-2]) != (raw[-2] | raw[-1] << 8):
             raise CommunicationError(f"bus {self.name}: fast sync read: CRC mismatch")
-        out: ReadResult = {}
-        pos = 8
-        for sid in ids:
-            if raw[pos + 1] != sid:
-                raise CommunicationError(
-                    f"bus {self.name}: fast sync read: expected ID {sid}, got {raw[pos + 1]}"
-                )
-            out[sid] = (raw[pos], raw[pos + 2 : pos + 2 + size])
-            pos += size + 4
-        return out
+        # Per servo: ERR, ID, DATA…, CRC_L, CRC_H (the running CRC, checked above as a whole).
+        rows = np.frombuffer(raw, dtype=np.uint8, count=n * (size + 4), offset=8).reshape(
+            n, size + 4
+        )
+        got = rows[:, 1]
+        if not np.array_equal(got, np.asarray(ids, dtype=np.uint8)):
+            k = int(np.argmax(got != np.asarray(ids, dtype=np.uint8)))
+            raise CommunicationError(
+                f"bus {self.name}: fast sync read: expected ID {ids[k]}, got {int(got[k])}"
+            )
+        return rows[:, 0], rows[:, 2 : 2 + size]
 
     def bulk_read(self, items: Sequence[tuple[int, int, int]]) -> ReadResult:
         """Bulk Read of (servo ID, address, size) items; the SDK's GroupBulkRead is broken on
@@ -356,6 +386,14 @@ class DynamixelBus:
             return self._read_status(ids, sizes, "bulk read")
 
         return self.transact(once, "bulk read")
+
+
+def as_block(result: ReadResult, ids: Sequence[int], size: int) -> tuple[ByteArray, ByteArray]:
+    """A ReadResult as (error byte per servo, (N, size) data matrix) in ``ids`` order; a servo
+    that answered with an error and no data gets a row of zeros."""
+    errors = np.array([result[sid][0] for sid in ids], dtype=np.uint8)
+    data = b"".join(result[sid][1].ljust(size, b"\0") for sid in ids)
+    return errors, np.frombuffer(data, dtype=np.uint8).reshape(len(ids), size)
 
 
 def buses_from_config(

@@ -35,13 +35,13 @@ from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.errors import CommunicationError, HardwareError, ServoFaultError
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.backend import JointBackend
-from robot_retarget.hardware.bus import DynamixelBus, ReadResult
+from robot_retarget.hardware.bus import ByteArray, DynamixelBus, ReadResult, as_block
 from robot_retarget.hardware.control_table import (
     ControlTable,
     control_table,
-    decode_sign_magnitude,
     error_bit_names,
 )
+from robot_retarget.hardware.goal_packet import GoalPacket
 from robot_retarget.hardware.safety import UnsafeCommandError
 from robot_retarget.hardware.servo_registers import (
     RegisterFinding,
@@ -49,6 +49,8 @@ from robot_retarget.hardware.servo_registers import (
     check_servo,
     fix_servo,
 )
+from robot_retarget.hardware.stage_timer import StageTimer
+from robot_retarget.hardware.state_block import StateBlock
 from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_models import servo_model
@@ -57,6 +59,13 @@ from robot_retarget.robot.servo_units import ServoUnits
 _RPM2_PER_LSB = 214.577  # XM430 Profile Acceleration unit, rev/min²
 _MX_ACCEL_DEG_S2_PER_LSB = 8.583  # MX Goal Acceleration unit
 _POSITION_CONTROL_MODE = 3
+# Read every tick. Protocol 2.0: Present Load … Present Position (10 bytes; the span to Present
+# Temperature would be 21 bytes per servo, +1.1 ms on OP3's 2 Mbps wire). Protocol 1.0: the
+# span already ends at Present Temperature (8 bytes).
+_STATE_REGISTERS_V2 = ("present_load", "present_velocity", "present_position")
+_STATE_REGISTERS_V1 = ("present_position", "present_speed", "present_load", "present_temperature")
+# Temperature changes over seconds: on Protocol 2.0 it is read on its own about once a second.
+_TEMPERATURE_PERIOD_S = 1.0
 
 
 class ModelMismatchError(HardwareError):
@@ -79,7 +88,7 @@ _LIMIT_TOL_RAD = 1e-9
 
 @dataclass
 class _BusGroup:
-    """The joints of one bus, and how to read them."""
+    """The joints of one bus, and how to write and read them (packets laid out once)."""
 
     name: str
     bus: DynamixelBus
@@ -89,6 +98,15 @@ class _BusGroup:
     fast: bool  # Protocol 2.0: Fast Sync Read
     bulk_ids: list[int]  # Protocol 1.0: read by Bulk Read
     single_ids: list[int]  # Protocol 1.0: read one by one
+    goal: GoalPacket
+    state: StateBlock  # read every tick
+    temperature: StateBlock | None  # Protocol 2.0: read about once a second
+    joints: IntArray  # joint_index as an array
+    direction: FloatArray  # per servo of the group
+    velocity_unit_rad_s: FloatArray
+    full_load: FloatArray
+    read_packet: bytes = b""  # Protocol 2.0 (Fast) Sync Read request, built at connect
+    temperature_packet: bytes = b""
 
 
 class DynamixelBackend(JointBackend):
@@ -135,6 +153,21 @@ class DynamixelBackend(JointBackend):
             tables = [control_table(config.joints[i].servo_model) for i in idx]
             ids = [config.joints[i].servo_id for i in idx]
             v2 = float(bc.protocol) == 2.0
+            state = StateBlock(tables[0], _STATE_REGISTERS_V2 if v2 else _STATE_REGISTERS_V1)
+            goal_reg = tables[0]["goal_position"]
+            goal_at = (goal_reg.address, goal_reg.size)
+            odd = [
+                t.model
+                for t in tables
+                if not state.matches(t)
+                or (t["goal_position"].address, t["goal_position"].size) != goal_at
+            ]
+            if odd:
+                raise HardwareError(
+                    f"bus {bc.name}: servo models {sorted(set(odd))} keep goal or present state "
+                    f"elsewhere than {tables[0].model}; one Sync Write / Read cannot serve them: "
+                    "put them on their own bus in the config"
+                )
             self._groups.append(
                 _BusGroup(
                     name=bc.name,
@@ -149,8 +182,23 @@ class DynamixelBackend(JointBackend):
                     single_ids=[]
                     if v2
                     else [i for i, t in zip(ids, tables, strict=True) if not t.bulk_read],
+                    goal=GoalPacket(bc.protocol, goal_reg.address, goal_reg.size, ids),
+                    state=state,
+                    temperature=StateBlock(tables[0], ("present_temperature",)) if v2 else None,
+                    joints=np.asarray(idx, dtype=np.intp),
+                    direction=np.array([config.joints[i].direction for i in idx], dtype=float),
+                    velocity_unit_rad_s=np.array([t.velocity_unit_rad_s for t in tables]),
+                    full_load=np.array([t.full_load for t in tables], dtype=float),
                 )
             )
+        n = config.num_joints
+        # Last read per joint: Hardware Error Status (P2.0) / status error bits (P1.0).
+        self.hardware_error: IntArray = np.zeros(n, dtype=np.int64)
+        self._temperature: FloatArray = np.full(n, np.nan)
+        self._temperature_every = max(1, round(_TEMPERATURE_PERIOD_S * config.control_rate_hz))
+        self._reads = 0
+        # Optional: per-stage durations of send / read_state (bench loop sets one).
+        self.stage_timer: StageTimer | None = None
         self._connected = False
         self._torque_on = False
         self._faulted: HardwareError | None = None
@@ -173,6 +221,7 @@ class DynamixelBackend(JointBackend):
                 if not g.bus.is_open:
                     g.bus.open()
             self._check_models()
+            self._build_read_packets()
             self._check_registers()
             self._configure_servos()
             state = self._read_state_raw()
@@ -227,6 +276,16 @@ class DynamixelBackend(JointBackend):
                 if g.fast and firmware < table.fast_sync_read_min_firmware:
                     g.fast = False  # older firmware: plain Sync Read on this bus
 
+    def _build_read_packets(self) -> None:
+        for g in self._groups:
+            if g.bus.protocol != 2.0:
+                continue
+            block = g.state
+            g.read_packet = g.bus.sync_read_packet(block.address, block.size, g.ids, fast=g.fast)
+            if g.temperature is not None:
+                t = g.temperature
+                g.temperature_packet = g.bus.sync_read_packet(t.address, t.size, g.ids, fast=g.fast)
+
     def _check_registers(self) -> None:
         """Limits, Homing Offset and Drive Mode as the config expects, or refuse (or, with
         ``fix_registers``, write them, with the torque off, and read them back)."""
@@ -248,11 +307,11 @@ class DynamixelBackend(JointBackend):
         err = g.bus.write(sid, reg.address, p.le_bytes(value, reg.size))
         if g.bus.protocol == 2.0:
             if err & 0x80:
-                self._raise_fault(g, sid, table)
+                self._raise_fault(g, sid, self._hardware_error_bits(g, sid, table))
             bad = err & 0x7F
         else:
             if err & 0x25:
-                self._raise_fault(g, sid, table, err)
+                self._raise_fault(g, sid, err & 0x25)
             bad = err & ~0x25
         if bad:
             raise HardwareError(
@@ -349,12 +408,14 @@ class DynamixelBackend(JointBackend):
             raise NotConnectedError(f"robot {self.config.name}: connect() first")
 
     def _write_goals(self, g: _BusGroup, ticks: IntArray) -> None:
-        reg = g.tables[0]["goal_position"]
-        values = {
-            sid: p.le_bytes(int(ticks[i]), reg.size)
-            for sid, i in zip(g.ids, g.joint_index, strict=True)
-        }
-        self.last_packets[g.name] = g.bus.sync_write(reg.address, reg.size, values)
+        timer = self.stage_timer
+        packet = g.goal.build(ticks[g.joints])
+        if timer is not None:
+            timer.lap("packet_build")
+        g.bus.write_packet(packet)
+        self.last_packets[g.name] = packet
+        if timer is not None:
+            timer.lap("sdk_write")
 
     def _send_now(self, q: FloatArray, ticks: IntArray | None = None) -> FloatArray:
         if ticks is None:
@@ -394,6 +455,8 @@ class DynamixelBackend(JointBackend):
         try:
             self._check_joint_limits(q)
             ticks = self.units.to_ticks(q)  # range check before anything moves
+            if self.stage_timer is not None:
+                self.stage_timer.lap("limit_check")
             if not self._torque_on:
                 self._enable_torque_at_present()
                 self._ramp_to(q)
@@ -417,13 +480,7 @@ class DynamixelBackend(JointBackend):
             self._faulted = exc
 
     # ----- reading -----------------------------------------------------------------------------
-    def _raise_fault(
-        self, g: _BusGroup, sid: int, table: ControlTable, bits: int | None = None
-    ) -> None:
-        if bits is None:  # Protocol 2.0: the alert bit says "look at Hardware Error Status"
-            reg = table["hardware_error_status"]
-            _, data = g.bus.read(sid, reg.address, reg.size)
-            bits = data[0] if data else 0
+    def _raise_fault(self, g: _BusGroup, sid: int, bits: int) -> None:
         names = error_bit_names(bits, g.bus.protocol) or (f"0x{bits:02x}",)
         joint = self.config.joints[g.joint_index[g.ids.index(sid)]].name
         self.torque_off()
@@ -437,56 +494,81 @@ class DynamixelBackend(JointBackend):
         self._faulted = err
         raise err
 
-    def _read_group(self, g: _BusGroup) -> ReadResult:
-        t0 = g.tables[0]
+    def _hardware_error_bits(self, g: _BusGroup, sid: int, table: ControlTable) -> int:
+        """Protocol 2.0: the alert bit says "look at Hardware Error Status": read it."""
+        reg = table["hardware_error_status"]
+        _, data = g.bus.read(sid, reg.address, reg.size)
+        return data[0] if data else 0
+
+    def _check_faults(self, g: _BusGroup, errors: ByteArray) -> None:
+        """Fill ``hardware_error`` for every servo that reports one, then raise for the first."""
+        v2 = g.bus.protocol == 2.0
+        bad = np.flatnonzero(errors & (p.ERR2_ALERT if v2 else 0x25))
+        if bad.size == 0:
+            return
+        first: tuple[int, int] | None = None
+        for k in bad.tolist():
+            sid = g.ids[k]
+            bits = self._hardware_error_bits(g, sid, g.tables[k]) if v2 else int(errors[k]) & 0x25
+            self.hardware_error[g.joint_index[k]] = bits
+            if first is None:
+                first = (sid, bits)
+        if first is not None:
+            self._raise_fault(g, *first)
+
+    def _read_group(self, g: _BusGroup) -> tuple[ByteArray, ByteArray]:
+        """(error byte per servo, (N, block) data) of the per-tick state block, in ID order."""
+        block = g.state
         if g.bus.protocol == 2.0:
-            addr, size = t0.block("present_load", "present_temperature")
-            return g.bus.sync_read(addr, size, g.ids, fast=g.fast)
-        addr, size = t0.block("present_position", "present_temperature")
+            return g.bus.sync_read_block(g.read_packet, g.ids, block.size, fast=g.fast)
         out: ReadResult = {}
         if g.bulk_ids:
-            out.update(g.bus.bulk_read([(sid, addr, size) for sid in g.bulk_ids]))
+            out.update(g.bus.bulk_read([(sid, block.address, block.size) for sid in g.bulk_ids]))
         for sid in g.single_ids:
-            out[sid] = g.bus.read(sid, addr, size)
-        return out
+            out[sid] = g.bus.read(sid, block.address, block.size)
+        return as_block(out, g.ids, block.size)
+
+    def _read_temperatures(self, g: _BusGroup) -> None:
+        t = g.temperature
+        if t is None:
+            return
+        errors, data = g.bus.sync_read_block(g.temperature_packet, g.ids, t.size, fast=g.fast)
+        self._check_faults(g, errors)
+        self._temperature[g.joints] = t.decode(data, "present_temperature")
 
     def _read_state_raw(self) -> JointState:
         n = self.config.num_joints
+        timer = self.stage_timer
         ticks = np.zeros(n, dtype=np.int64)
         vel = np.zeros(n)
         load = np.zeros(n)
-        temp = np.zeros(n)
-        herr = np.zeros(n, dtype=np.int64)
+        slow = self._reads % self._temperature_every == 0
+        self._reads += 1
         for g in self._groups:
-            result = self._read_group(g)
-            v2 = g.bus.protocol == 2.0
-            for sid, i, table in zip(g.ids, g.joint_index, g.tables, strict=True):
-                err, d = result[sid]
-                if v2 and err & 0x80:
-                    self._raise_fault(g, sid, table)
-                if not v2 and err & 0x25:
-                    self._raise_fault(g, sid, table, err)
-                if v2:  # block from Present Load (126)
-                    load_raw = int.from_bytes(d[0:2], "little", signed=True)
-                    vel_raw = int.from_bytes(d[2:6], "little", signed=True)
-                    ticks[i] = int.from_bytes(d[6:10], "little", signed=True)
-                    temp[i] = d[20]
-                else:  # block from Present Position (36)
-                    ticks[i] = d[0] | d[1] << 8
-                    vel_raw = decode_sign_magnitude(d[2] | d[3] << 8, 10)
-                    load_raw = decode_sign_magnitude(d[4] | d[5] << 8, 10)
-                    temp[i] = d[7]
-                direction = self.config.joints[i].direction
-                vel[i] = direction * vel_raw * table.velocity_unit_rad_s
-                load[i] = direction * load_raw / table.full_load
-        return JointState(
+            errors, data = self._read_group(g)
+            if slow:
+                self._read_temperatures(g)
+            if timer is not None:
+                timer.lap("read")
+            self._check_faults(g, errors)
+            block, idx = g.state, g.joints
+            speed = "present_velocity" if "present_velocity" in block else "present_speed"
+            ticks[idx] = block.decode(data, "present_position")
+            vel[idx] = g.direction * block.decode(data, speed) * g.velocity_unit_rad_s
+            load[idx] = g.direction * block.decode(data, "present_load") / g.full_load
+            if "present_temperature" in block:
+                self._temperature[idx] = block.decode(data, "present_temperature")
+        state = JointState(
             q=self.units.from_ticks(ticks),
             velocity=vel,
             load=load,
-            temperature=temp,
-            hardware_error=herr,
+            temperature=self._temperature,
+            hardware_error=self.hardware_error,
             t_s=time.monotonic(),
         )
+        if timer is not None:
+            timer.lap("decode")
+        return state
 
     # ----- signals -----------------------------------------------------------------------------
     def _install_signal_handlers(self) -> None:

@@ -16,6 +16,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
+
 from robot_retarget.errors import CommunicationError
 
 HEADER_V2 = b"\xff\xff\xfd\x00"
@@ -80,8 +83,39 @@ def _make_crc_table() -> tuple[int, ...]:
 _CRC_TABLE = _make_crc_table()
 
 
+# Packets at least this long take the table-per-position path (one numpy gather instead of a
+# Python loop: 7 µs instead of 18 µs for a 20-servo Sync Write, 6 µs instead of 47 µs for 300 B).
+_CRC_NUMPY_MIN_BYTES = 64
+_CRC_MAX_POSITIONS = 1100  # longest packet (1024 B after stuffing) with room to spare
+_crc_by_position: npt.NDArray[np.uint16] | None = None
+
+
+def _crc_position_table() -> npt.NDArray[np.uint16]:
+    """Row k, column v: the CRC of byte v followed by k zero bytes, flattened.
+
+    The CRC (init 0, no final XOR) is linear over GF(2), so a message's CRC is the XOR of its
+    bytes' contributions at their distance from the end. Built on first use (≈ 2 ms)."""
+    global _crc_by_position
+    if _crc_by_position is None:
+        byte_table = np.array(_CRC_TABLE, dtype=np.uint16)
+        rows = np.empty((_CRC_MAX_POSITIONS, 256), dtype=np.uint16)
+        rows[0] = byte_table
+        for k in range(1, _CRC_MAX_POSITIONS):
+            prev = rows[k - 1]
+            rows[k] = (prev << 8) ^ byte_table[prev >> 8]  # one more zero byte through the CRC
+        _crc_by_position = rows.ravel()
+    return _crc_by_position
+
+
 def crc16(data: bytes | bytearray, crc: int = 0) -> int:
-    """CRC-16/BUYPASS (poly 0x8005, init 0, no reflection) as the Protocol 2.0 manual gives it."""
+    """CRC-16/BUYPASS (poly 0x8005, init 0, no reflection) as the Protocol 2.0 manual gives it.
+
+    ``crc`` continues a CRC over earlier bytes."""
+    n = len(data)
+    if crc == 0 and _CRC_NUMPY_MIN_BYTES <= n <= _CRC_MAX_POSITIONS:
+        table_flat = _crc_position_table()
+        index = np.arange((n - 1) * 256, -1, -256) + np.frombuffer(data, dtype=np.uint8)
+        return int(np.bitwise_xor.reduce(table_flat[index]))
     table = _CRC_TABLE
     for b in data:
         crc = ((crc << 8) ^ table[((crc >> 8) ^ b) & 0xFF]) & 0xFFFF

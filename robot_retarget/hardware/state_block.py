@@ -1,0 +1,91 @@
+"""A contiguous span of control-table registers read from many servos, decoded by register name.
+
+The backend reads one block per servo per tick (Sync / Fast Sync / Bulk Read): the span from
+its first to its last register. Where each register sits inside the span, how wide it is and
+how it is signed comes from :mod:`robot_retarget.hardware.control_table`, never from offsets
+written by hand. Decoding works on all servos at once: an (N, span) byte matrix in, one int64
+array of N values per register out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.array_types import IntArray
+from robot_retarget.hardware.control_table import ControlTable
+
+ByteMatrix = npt.NDArray[np.uint8]
+
+
+@dataclass(frozen=True)
+class _Field:
+    name: str
+    offset: int  # bytes from the block's start
+    size: int
+    signed: bool
+    sign_magnitude_bit: int | None  # Protocol 1.0 speed / load: direction in this bit
+
+
+class StateBlock:
+    """Registers ``names`` of ``table``, read as one span from the lowest to the highest."""
+
+    def __init__(self, table: ControlTable, names: Sequence[str]) -> None:
+        if not names:
+            raise ValueError("a state block needs at least one register")
+        regs = [table[n] for n in names]
+        self.table = table
+        self.address = min(r.address for r in regs)
+        self.size = max(r.address + r.size for r in regs) - self.address
+        sign_magnitude = {"present_speed", "present_load"} if table.sign_magnitude_bit else set()
+        self._fields = {
+            r.name: _Field(
+                r.name,
+                r.address - self.address,
+                r.size,
+                r.signed,
+                table.sign_magnitude_bit if r.name in sign_magnitude else None,
+            )
+            for r in regs
+        }
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self._fields)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._fields
+
+    def matches(self, other: ControlTable) -> bool:
+        """Whether ``other`` has the same registers at the same places (one read serves both)."""
+        try:
+            return all(
+                other[f.name].address - self.address == f.offset and other[f.name].size == f.size
+                for f in self._fields.values()
+            )
+        except KeyError:
+            return False
+
+    def decode(self, data: ByteMatrix, name: str) -> IntArray:
+        """Register ``name`` of every servo: ``data`` holds one block per row."""
+        f = self._fields[name]
+        cols = data[:, f.offset : f.offset + f.size].astype(np.int64)
+        value = cols[:, 0].copy()
+        for k in range(1, f.size):
+            value |= cols[:, k] << (8 * k)
+        if f.sign_magnitude_bit is not None:
+            bit = 1 << f.sign_magnitude_bit
+            magnitude = value & (bit - 1)
+            return np.where(value & bit, -magnitude, magnitude)
+        if f.signed:
+            half = 1 << (8 * f.size - 1)
+            value -= (value >= half) * (half << 1)
+        return value
+
+
+def stack_blocks(blocks: Sequence[bytes], size: int) -> ByteMatrix:
+    """Per-servo byte strings (each ``size`` long) as an (N, size) matrix."""
+    return np.frombuffer(b"".join(blocks), dtype=np.uint8).reshape(len(blocks), size)
