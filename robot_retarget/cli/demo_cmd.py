@@ -177,9 +177,11 @@ def run(args: argparse.Namespace) -> int:
 
         scorer = Scorer(config)
         seen = dataclasses.replace(truth, fps=truth.fps * args.speed)
-        from_2d = scorer.score(seen, offline_q)[0]
-        from_3d = scorer.score(seen, convert_motion(seen, step).trajectory.q)[0]
-        still = scorer.score(seen, np.repeat(config.init_pose[None], len(offline_q), 0))[0]
+        base = offline.trajectory.root_quat  # each robot on its trajectory's floating base
+        from_2d = scorer.score(seen, offline_q, base)[0]
+        from_3d_traj = convert_motion(seen, step).trajectory
+        from_3d = scorer.score(seen, from_3d_traj.q, from_3d_traj.root_quat)[0]
+        still = scorer.score(seen, np.repeat(config.init_pose[None], len(offline_q), 0), base)[0]
         checks[
             f"2D input follows the routine: direction error {from_2d:.1f}° (the same clip as "
             f"3D: {from_3d:.1f}°, standing still: {still:.1f}°)"

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.evaluation.robot.metrics import segment_angles, trajectory_stats
 from robot_retarget.evaluation.robot.runner import PipelineFn, PipelineRun, pipeline_runner
 from robot_retarget.evaluation.robot.segments import RobotBodyModel, human_body_points
@@ -118,16 +119,17 @@ class Scorer:
         self.rate = float(config.control_rate_hz)
         self.stride = max(1, round(self.rate / eval_fps))
 
-    def score(self, truth: HumanMotion, run: PipelineRun) -> tuple[float, float, float, int, int]:
-        """(direction °, limb direction °, seconds, limit violations, speed violations); the
-        robot stands on the run's floating base (its trajectory's ``root_quat``) when it has
-        one, as eval-robot scores the pipeline, else upright."""
-        q = run.q
+    def score(
+        self, truth: HumanMotion, q: FloatArray, root_quat: FloatArray | None = None
+    ) -> tuple[float, float, float, int, int]:
+        """(direction °, limb direction °, seconds, limit violations, speed violations) of joint
+        angles ``q`` (T, J); with ``root_quat`` (T, 4) (a trajectory's floating base) the robot
+        stands on it, as eval-robot scores the pipeline, else upright."""
         human = truth.resample(self.rate)
         pos = human.positions()
         n = min(pos.shape[0], q.shape[0])
         idx = np.arange(0, n, self.stride)
-        base = None if run.root_quat is None else quat.to_matrix(run.root_quat[idx])
+        base = None if root_quat is None else quat.to_matrix(np.asarray(root_quat)[idx])
         robot = self.body.body_points(q[idx], base)
         ang = np.degrees(segment_angles(human_body_points(pos[idx]), robot))
         stats = trajectory_stats(self.config, q[:n], self.rate)
@@ -138,6 +140,10 @@ class Scorer:
             stats.limit_violations,
             stats.speed_violations,
         )
+
+
+def _q_and_base(run: PipelineRun) -> tuple[FloatArray, FloatArray | None]:
+    return run.q, run.root_quat
 
 
 def evaluate_2d(
@@ -160,7 +166,7 @@ def evaluate_2d(
     rows = report.rows
     for k, (name, path) in enumerate(clips):
         truth = load_motion(path, max_frames=max_frames)
-        rows.setdefault("3d", InputScore()).add(*scorer.score(truth, run(truth)))
+        rows.setdefault("3d", InputScore()).add(*scorer.score(truth, *_q_and_base(run(truth))))
         for elevation in ELEVATIONS_DEG:
             for azimuth in AZIMUTHS_DEG:
                 cam = _camera(elevation, azimuth)
@@ -168,7 +174,7 @@ def evaluate_2d(
                 seq = keypoints_of(truth, cam, rng, noise)
                 for causal, label in ((False, "2d clip"), (True, "2d stream")):
                     lifted = world_heading(lift_keypoints(seq, keypoint_model, causal=causal), cam)
-                    scores = scorer.score(truth, run(lifted))
+                    scores = scorer.score(truth, *_q_and_base(run(lifted)))
                     rows.setdefault(f"{label} @ {elevation:g}°", InputScore()).add(*scores)
                     rows.setdefault(label, InputScore()).add(*scores)
         if progress is not None:

@@ -48,8 +48,11 @@ def test_projected_demo_motion_converts_and_follows_the_performer(tmp_path: Path
     config = load_robot_config("op3")
     assert check_limits(config, traj.q, 1.0 / traj.fps).ok
     scorer = Scorer(config)
-    followed = scorer.score(truth, np.asarray(traj.q))[0]
-    held = scorer.score(truth, np.repeat(np.asarray(config.init_pose)[None], len(traj.q), 0))[0]
+    base = np.asarray(traj.root_quat)  # on the trajectory's floating base
+    followed = scorer.score(truth, np.asarray(traj.q), base)[0]
+    held = scorer.score(truth, np.repeat(np.asarray(config.init_pose)[None], len(traj.q), 0), base)[
+        0
+    ]
     # The robot follows the performer seen only in 2D far better than standing still.
     assert followed < 0.6 * held, (followed, held)
 
