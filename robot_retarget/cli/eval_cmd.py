@@ -1,7 +1,8 @@
 """``eval --model NAME|PATH --data DIR [--robot op3] [--json]``: score models on unseen subjects.
 
-Loads the clips of the validation subjects (the training default, or those a checkpoint was
-validated on), retargets each onto the other validation subjects' skeletons and the robot's
+Loads the clips of the validation subjects (the training default, or ``--val-subjects``; every
+clip with ``--val-subjects all`` or when the folder holds none of the default ones), retargets
+each onto the other validation subjects' skeletons and the robot's
 canonical skeleton, and prints one table row per model (robot_retarget.evaluation.runner).
 ``--model`` is repeatable: ``--model copy --model copy-scaled --model runs/x/best.pt``.
 """
@@ -38,7 +39,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--val-subjects",
         default=None,
-        help="comma-separated subjects to evaluate on (default: the training default)",
+        help="comma-separated subjects to evaluate on, or 'all' for every clip of --data "
+        "(default: the training split's validation subjects; a folder holding none of them, "
+        "other performers or your own recordings, is scored whole)",
     )
     parser.add_argument("--fps", type=float, default=None, help="frame rate (default 30)")
     parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
@@ -72,7 +75,18 @@ def run(args: argparse.Namespace) -> int:
         subjects = tuple(s for s in args.val_subjects.split(",") if s)
     fps = DEFAULT_FPS if args.fps is None else args.fps
     dataset = load_dataset(args.data, fps=fps, cache_dir=args.cache_dir)
-    _, val = dataset.split(subjects)
+    whole = subjects == ("all",) or (
+        not args.val_subjects and not set(subjects) & set(dataset.subjects)
+    )
+    if whole:  # no training split to respect: every clip is scored
+        print(
+            f"scoring all {len(dataset.clips)} clips of {len(dataset.subjects)} subject(s) "
+            f"under {args.data}",
+            file=sys.stderr,
+        )
+        val = dataset
+    else:
+        _, val = dataset.split(subjects)
     robot_names = [r for r in (args.robot or ["op3"]) if r != "none"]
     robots = robot_skeletons(tuple(robot_names))
     settings = EvalSettings(robots=tuple(robot_names), max_frames=args.max_frames, seed=args.seed)

@@ -130,3 +130,21 @@ def test_bench_defaults_cover_copy_nkn_pmnet_residual() -> None:
     # The live pipeline's numpy steps are timed next to the torch ones, in the same run.
     numpy_rows = {r["model"] for r in records if r["mode"] == "online-numpy"}
     assert numpy_rows == {"copy", "pmnet", "residual"}
+
+
+def test_eval_scores_a_whole_folder_of_other_performers(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder holding none of the training split's validation subjects (s1–s3 here) is scored
+    whole, as is any folder with --val-subjects all; named subjects still pick their clips."""
+    base = ["--model", "copy", "--data", str(mocap), "--json", "--cache-dir", str(tmp_path / "c")]
+    base += ["--max-frames", "20"]
+
+    def clips_scored(extra: list[str]) -> int:
+        assert _run(eval_cmd, base + extra) == 0
+        report = json.loads(capsys.readouterr().out)
+        return int(report["results"][0]["clips"])
+
+    assert clips_scored([]) == 4
+    assert clips_scored(["--val-subjects", "all"]) == 4
+    assert clips_scored(["--val-subjects", "s1"]) == 2
