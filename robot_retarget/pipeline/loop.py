@@ -36,6 +36,7 @@ from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.safety import ClipStats, SafetyLayer
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.pipeline.interpolation import FrameInterpolator
+from robot_retarget.pipeline.live_mailbox import LiveFrame, Mailbox
 from robot_retarget.pipeline.live_stats import LiveStats, StatsSnapshot
 from robot_retarget.pipeline.start_ramp import RampOutcome, RampSettings, StartRamp, toward
 from robot_retarget.pipeline.step import RetargetStep, StepStats
@@ -130,6 +131,7 @@ class ControlLoop:
         record: bool = False,
         clock: Callable[[], float] = time.monotonic,
         sleep: Callable[[float], None] = time.sleep,
+        mailbox: Mailbox[LiveFrame] | None = None,
     ) -> None:
         self.step = step
         self.config = step.config
@@ -161,6 +163,9 @@ class ControlLoop:
         self._settle_next = False  # the next step solves its frame to its optimum
         self._ramp_done = False
         self._k = 0  # tick counter: command stamps are k periods apart
+        # A watcher's (stream --view) one-slot mailbox: one LiveFrame per command, never waited on.
+        self.mailbox = mailbox
+        self._silence_s = 0.0
 
     # ----------------------------------------------------------------------------- helpers
     def _set_mode(self, mode: Mode, now: float, why: str) -> None:
@@ -182,6 +187,20 @@ class ControlLoop:
         self.stats.commands += 1
         if self.record:
             self.log.append(LogEntry(now, play_t, self.mode, self._q_cmd))
+        if self.mailbox is not None:
+            stats = self.stats
+            self.mailbox.put(
+                LiveFrame(
+                    now,
+                    self.mode.value,
+                    q,
+                    self._q_cmd,
+                    self._silence_s,
+                    stats.latency_s[-1] if stats.latency_s else float("nan"),
+                    stats.jitter_s[-1] if stats.jitter_s else 0.0,
+                    self.safety.stats.commands_clipped,
+                )
+            )
 
     def _present(self) -> FloatArray:
         return np.array(self.safety.read_state().q, dtype=np.float64)
@@ -259,7 +278,8 @@ class ControlLoop:
             newest = interp.newest
             if self.source.finished and (newest is None or interp.play_time(now) > newest.t_s):
                 return
-            self._tick(now, interp, now - last_recv)
+            self._silence_s = now - last_recv
+            self._tick(now, interp, self._silence_s)
             if now - last_report >= s.report_every_s:
                 last_report = now
                 self.report(self.stats.snapshot(self.source.stats).line())
