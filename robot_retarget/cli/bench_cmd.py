@@ -24,6 +24,7 @@ TARGETS: dict[str, str] = {
     "model": "robot_retarget.nn.benchmark",
     "pipeline": "robot_retarget.pipeline.benchmark",
     "convert": "robot_retarget.pipeline.convert_benchmark",
+    "stream": "robot_retarget.pipeline.stream_benchmark",
 }
 
 
