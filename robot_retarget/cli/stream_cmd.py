@@ -12,7 +12,8 @@ statistics and source warnings go to stderr (statistics every --stats-every seco
 the config's default_port). --record saves what was sent (after the safety layer, one row per
 control tick) as a trajectory file; its path is checked before the robot moves
 (robot_retarget.cli.output_paths), and if it cannot be written at the end the recording goes to a
-fallback path that is printed.
+fallback path that is printed. --view serves a live page (robot_retarget.viewer.live_page) fed
+from the loop's one-slot mailbox by its own thread: the loop never waits for it.
 """
 
 from __future__ import annotations
@@ -82,6 +83,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="dynamixel: write the expected angle/position limits, Homing Offset and Drive Mode "
         "where another tool left other values, instead of refusing to connect",
     )
+    parser.add_argument(
+        "--view",
+        action="store_true",
+        help="serve a live page: commanded (and, with --backend sim, measured) angles, safety "
+        "clips, watchdog state, latency (needs the [view] extra)",
+    )
+    parser.add_argument(
+        "--view-port", type=int, default=8080, help="--view: port (the next free one if busy)"
+    )
+    parser.add_argument("--no-browser", action="store_true", help="--view: do not open a browser")
 
 
 def _on_sigterm(signum: int, frame: FrameType | None) -> None:
@@ -104,6 +115,10 @@ def run(args: argparse.Namespace) -> int:
         if value is not None and not value > 0:
             raise RetargetError(f"--{name} must be positive, got {value}")
     _check_remote(args)
+    if args.view:
+        from robot_retarget.viewer.dependency import require_viser
+
+        require_viser()  # before the robot moves: the install hint comes first
     if args.record is not None:
         _check_record(args)
     config = load_robot_config(args.robot)
@@ -133,7 +148,23 @@ def run(args: argparse.Namespace) -> int:
     settings = LoopSettings(
         rate_hz=args.rate, duration_s=args.duration, report_every_s=args.stats_every
     )
-    loop = ControlLoop(step, source, backend, settings, report=report, record=bool(args.record))
+    page = None
+    mailbox = None
+    if args.view:
+        from robot_retarget.pipeline.live_mailbox import LiveFrame, Mailbox
+        from robot_retarget.viewer.live_page import LivePage
+        from robot_retarget.viewer.measurement import passive_measurement
+
+        mailbox = Mailbox[LiveFrame]()
+        page = LivePage(config, mailbox, measure=passive_measurement(backend), port=args.view_port)
+        report(f"live view: {page.url}")
+        if not args.no_browser:
+            import webbrowser
+
+            webbrowser.open(page.url)
+    loop = ControlLoop(
+        step, source, backend, settings, report=report, record=bool(args.record), mailbox=mailbox
+    )
     rate = args.rate or config.control_rate_hz
     report(
         f"streaming {source.describe()} → {config.name} ({args.backend}) at {rate:g} Hz, "
@@ -152,6 +183,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if old is not None:
             signal.signal(signal.SIGTERM, old)
+        if page is not None:
+            page.close()
     print(f"frames: {result.step.frames} retargeted, {result.stats.commands} commands sent")
     print(result.stats.line())
     print(source.stats.summary())
