@@ -85,6 +85,13 @@ class LivePage:
     def url(self) -> str:
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
+    def shown(self) -> dict[str, str]:
+        """What the Live panel shows now, by label."""
+        fields = (self._mode, self._silence, self._latency, self._jitter, self._clips)
+        out = {f.label: str(f.value) for f in fields}
+        out[self._clipped_now.label] = str(self._clipped_now.value)
+        return out
+
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2.0)
