@@ -10,6 +10,8 @@ cannot be read or converted comes back as a :class:`ClipReport` with its error, 
 
 from __future__ import annotations
 
+import dataclasses
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
@@ -65,6 +67,7 @@ class ClipReport:
     error: str | None = None
     position_excess_rad: float = 0.0
     velocity_excess_rad: float = 0.0
+    cpu_s: float = 0.0  # the converting process's CPU seconds for this clip (read to written)
 
 
 class ClipConverter:
@@ -91,10 +94,12 @@ class ClipConverter:
     ) -> ClipReport:
         """Convert ``job.clip`` and write its outputs; errors come back in the report.
         ``log``: where a keypoint clip's input summary goes (the CLI prints it)."""
+        cpu0 = time.process_time()
         try:
-            return self._convert(job, progress, log)
+            report = self._convert(job, progress, log)
         except (RetargetError, OSError, ValueError) as exc:
-            return ClipReport(job.clip, job.out, error=str(exc))
+            report = ClipReport(job.clip, job.out, error=str(exc))
+        return dataclasses.replace(report, cpu_s=time.process_time() - cpu0)
 
     def _convert(
         self, job: ClipJob, progress: Progress | None, log: Callable[[str], None] | None

@@ -7,10 +7,12 @@ workers convert them again (robot_retarget.pipeline.clip_pool.RayClipPool) in on
 instance with as many CPUs as the largest count. Start-up is timed on its own (Ray's,
 ``ray_init_s``; the workers' with their solver loads, ``startup_s``) and left out of the
 throughput: frames/s is every clip's frames over the wall time from the first clip sent to the
-last clip back. Per clip: median and p99 of the conversion's compute seconds. The worker
-counts run in ``--repeat`` interleaved rounds (1, 2, 1, 2, ...): frames/s is the median over
-the rounds, the speed-up the median (and range) of each round's ratio to the first worker
-count's run of the same round, which cancels slow drifts in the load of a shared machine.
+last clip back; frames per CPU second (the converting processes' CPU time) is the per-worker
+rate whatever else the machine runs. Per clip: median and p99 of the conversion's compute
+seconds. The worker counts run in ``--repeat`` interleaved rounds (1, 2, 1, 2, ...): frames/s
+(and per CPU second) is the median over the rounds, the speed-up the median (and range) of
+each round's ratio to the first worker count's run of the same round, which cancels slow
+drifts in the load of a shared machine.
 Every run's files must equal the reference's bit for bit (every array but ``frame_ms``, the
 measured compute time per frame).
 """
@@ -121,6 +123,9 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
                 "startup_s": startup_s,
                 "wall_s": wall_s,
                 "frames_per_s": frames / wall_s,
+                # Per worker, whatever else the machine runs: frames over the CPU seconds the
+                # converting processes got (read, convert, write).
+                "frames_per_cpu_s": frames / sum(r.cpu_s for r in reports),
                 "clip_median_s": float(np.median(per_clip)),
                 "clip_p99_s": float(np.percentile(per_clip, 99)),
             }
@@ -165,6 +170,7 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
             rec["runs"] = len(runs[w])
             rec["frames_per_s"] = float(np.median([r["frames_per_s"] for r in runs[w]]))
             rec["wall_s"] = float(np.median([r["wall_s"] for r in runs[w]]))
+            rec["frames_per_cpu_s"] = float(np.median([r["frames_per_cpu_s"] for r in runs[w]]))
             rec["bit_equal"] = all(r.get("bit_equal", True) for r in runs[w])
             # Each run over the first count's run of the same round: load drifts between rounds.
             ratios = [

@@ -126,3 +126,23 @@ def test_killed_workers_and_a_bad_clip_lose_nothing_and_a_rerun_completes(
     for name in CLIPS:
         npz = Path(name).with_suffix(".npz")
         assert same_trajectory(out / npz, reference / npz), name
+
+
+def test_convert_command_on_two_workers(
+    ray_session: Any, clip_dir: Path, reference: Path, tmp_path: Path
+) -> None:
+    import argparse
+    import json
+
+    from robot_retarget.cli import convert_cmd
+
+    parser = argparse.ArgumentParser()
+    convert_cmd.configure(parser)
+    out = tmp_path / "out"
+    args = parser.parse_args([str(clip_dir), "--robot", "op3", "--out", str(out), "--workers", "2"])
+    assert convert_cmd.run(args) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert sorted(e["clip"] for e in manifest["clips"] if e["status"] == "done") == sorted(CLIPS)
+    for name in CLIPS:
+        npz = Path(name).with_suffix(".npz")
+        assert same_trajectory(out / npz, reference / npz), name
