@@ -70,7 +70,7 @@ from robot_retarget.nn.models.training import (
 from robot_retarget.nn.retarget_losses import bone_direction_loss, contact_loss, effector_loss
 from robot_retarget.nn.train_log import TrainLog
 
-TRAINABLE_MODELS: tuple[str, ...] = ("nkn", "pmnet", "residual")
+TRAINABLE_MODELS: tuple[str, ...] = ("nkn", "pmnet", "residual", "tdcn")
 
 
 @dataclass(frozen=True)

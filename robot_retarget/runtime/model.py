@@ -33,9 +33,10 @@ from robot_retarget.runtime.frame import check_offsets
 from robot_retarget.runtime.npz_file import read_runtime_npz, write_runtime_npz
 from robot_retarget.runtime.pmnet import FastPMnetRetargeter, PMnetWeights
 from robot_retarget.runtime.residual import FastResidualRetargeter, ResidualWeights
+from robot_retarget.runtime.tdcn import FastTDCNRetargeter, TDCNWeights
 
 FORMAT_VERSION = 1
-Weights = ResidualWeights | PMnetWeights
+Weights = ResidualWeights | PMnetWeights | TDCNWeights
 
 
 class OnlineStep(Protocol):
@@ -66,6 +67,11 @@ def _pmnet(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
     return FastPMnetRetargeter(w, src, tgt)
 
 
+def _tdcn(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+    assert isinstance(w, TDCNWeights)
+    return FastTDCNRetargeter(w, src, tgt)
+
+
 # architecture → (weights class or None, step factory)
 ARCHITECTURES: dict[
     str, tuple[type[Weights] | None, Callable[[Weights | None, FloatArray, FloatArray], OnlineStep]]
@@ -74,6 +80,7 @@ ARCHITECTURES: dict[
     "copy-scaled": (None, _copy_scaled),
     "residual": (ResidualWeights, _residual),
     "pmnet": (PMnetWeights, _pmnet),
+    "tdcn": (TDCNWeights, _tdcn),
 }
 
 

@@ -20,9 +20,11 @@ from robot_retarget.nn.models.copy import CopyModel, CopyScaledModel
 from robot_retarget.nn.models.nkn import NKN
 from robot_retarget.nn.models.pmnet import PMnet
 from robot_retarget.nn.models.residual import ResidualRetargeter
+from robot_retarget.nn.models.tdcn import TDCN
+from robot_retarget.nn.patch_discriminator import PatchDiscriminator
 
 MODELS: dict[str, type[RetargetModel]] = {
-    cls.name: cls for cls in (CopyModel, CopyScaledModel, NKN, PMnet, ResidualRetargeter)
+    cls.name: cls for cls in (CopyModel, CopyScaledModel, NKN, PMnet, ResidualRetargeter, TDCN)
 }
 
 # Models of 2D keypoints (not RetargetModels: their input is pixels, not rotations); trained
@@ -32,6 +34,7 @@ KEYPOINT_MODELS: dict[str, type[Agnostic2D]] = {Agnostic2D.name: Agnostic2D}
 DISCRIMINATORS: dict[str, type[nn.Module]] = {
     NKN.name: NKNDiscriminator,
     PMnet.name: PMnetDiscriminator,
+    TDCN.name: PatchDiscriminator,
 }
 
 
@@ -72,7 +75,7 @@ def build_model(name: str, **config: Any) -> RetargetModel:
 
 
 def has_discriminator(model_name: str) -> bool:
-    """Whether ``model_name`` is trained against a discriminator (NKN, PMnet)."""
+    """Whether ``model_name`` is trained against a discriminator (NKN, PMnet, TDCN)."""
     return model_name in DISCRIMINATORS
 
 

@@ -59,6 +59,9 @@ from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.nkn import NKN
 from robot_retarget.nn.models.pmnet import PMnet
 from robot_retarget.nn.models.residual import ResidualRetargeter
+from robot_retarget.nn.models.tdcn import TDCN
+from robot_retarget.nn.models.tdcn_training import TDCNLossWeights, tdcn_training_step
+from robot_retarget.nn.patch_discriminator import PatchDiscriminator
 from robot_retarget.nn.retarget_losses import (
     bone_direction_loss,
     contact_loss,
@@ -368,7 +371,7 @@ def residual_training_step(
     }
 
 
-_W = TypeVar("_W", NKNLossWeights, PMnetLossWeights, ResidualLossWeights)
+_W = TypeVar("_W", NKNLossWeights, PMnetLossWeights, ResidualLossWeights, TDCNLossWeights)
 
 
 def loss_weights(defaults: _W, overrides: Mapping[str, float] | None) -> _W:
@@ -398,6 +401,8 @@ def check_loss_weights(model_name: str, overrides: Mapping[str, float] | None) -
         loss_weights(NKNLossWeights(), overrides)
     elif model_name == "pmnet":
         loss_weights(PMnetLossWeights(), overrides)
+    elif model_name == "tdcn":
+        loss_weights(TDCNLossWeights(), overrides)
     else:
         loss_weights(ResidualLossWeights(), overrides)
 
@@ -421,10 +426,14 @@ def training_step(
     if isinstance(model, PMnet) and isinstance(disc, PMnetDiscriminator):
         w_pm = loss_weights(PMnetLossWeights(), weights)
         return pmnet_training_step(model, disc, batch, optimizers, w_pm)
+    if isinstance(model, TDCN) and isinstance(disc, PatchDiscriminator):
+        w_tdcn = loss_weights(TDCNLossWeights(), weights)
+        return tdcn_training_step(model, disc, batch, optimizers, w_tdcn)
     raise ValueError(
         f"no training step for model {type(model).__name__} with discriminator "
         f"{type(disc).__name__}; trainable pairs: NKN + NKNDiscriminator, PMnet + "
-        "PMnetDiscriminator, residual without one (copy baselines have nothing to train)"
+        "PMnetDiscriminator, TDCN + PatchDiscriminator, residual without one (copy baselines "
+        "have nothing to train)"
     )
 
 

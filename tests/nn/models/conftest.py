@@ -28,10 +28,12 @@ TINY_CONFIGS: dict[str, dict[str, object]] = {
         "denoiser_hidden": 8,
         "root_filter_taps": 3,
     },
+    "tdcn": {"channels": 8, "blocks": 2},
 }
 TINY_DISCRIMINATORS: dict[str, dict[str, object]] = {
     "nkn": {"channels": (8, 8, 8, 8)},
     "pmnet": {"channels": (4, 4, 4, 4)},
+    "tdcn": {"channels": 8, "dilations": (1, 2)},
 }
 
 

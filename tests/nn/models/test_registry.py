@@ -17,7 +17,7 @@ from robot_retarget.nn.models.registry import (
 
 
 def test_names() -> None:
-    assert model_names() == ("copy", "copy-scaled", "nkn", "pmnet", "residual")
+    assert model_names() == ("copy", "copy-scaled", "nkn", "pmnet", "residual", "tdcn")
     for name in model_names():
         assert build_model(name).name == name
 
@@ -42,6 +42,7 @@ def test_unknown_name_lists_choices() -> None:
         build_discriminator("residual")
     assert has_discriminator("nkn")
     assert has_discriminator("pmnet")
+    assert has_discriminator("tdcn")
     assert not has_discriminator("residual")
 
 

@@ -1,0 +1,174 @@
+"""One optimisation step of TDCN with the paper's objective (Kim et al. 2020, eq. 6):
+
+    L_c + λ_t L_t + λ_h L_h + λ_a L_a + λ_r L_r + λ_o L_o,
+    λ_t = 10, λ_h = 10, λ_a = 1, λ_r = 0.1, λ_o = 1 (section 5), λ_g = 5 inside L_h.
+
+- L_c, cycle (eq. 7): A → B → A against A, on x = [p, q, r]: the local pose and the root
+  movement per frame in centimetres (the units of the paper's Mixamo data, which its weights
+  were tuned in; in metres the cycle term would be 10⁴ times weaker against the others), the
+  rotations as 1 − ⟨q̂, q⟩² (sign-free) and the turning rate as the arc it sweeps at 1 m
+  (cm per frame: a heading drift turns the whole motion away from the source).
+- L_t, twist (eq. 8): angles beyond α = 100° on both passes (robot_retarget.nn.losses).
+- L_h, height (eq. 17): smooth-L1 between the height-normalised per-joint displacements of A
+  and B, plus λ_g × the same on the root's distance from its start (the paper's ‖r_t‖ with
+  the origin at the window's first frame, as our windows are anywhere in the room).
+- L_a (eq. 21): least squares against the patch discriminator when B ≠ A, ‖x_A − x̂_B‖² when
+  the target is the source's own skeleton (half the batches' samples, as the dataset draws).
+- L_r (eq. 22): (1 − ‖q̂‖)² on the raw rotation outputs of both passes.
+- L_o (eq. 23): smooth-L1 between the rotation angles of A's and B's heading-free root.
+
+The discriminator learns real motion from the sources themselves (its inputs are normalised by
+height, so any performer's motion is real motion for any skeleton; robots have no recorded
+motion), least squares, on the samples whose target differs from the source. Adam (lr 1e-4);
+generator gradients clipped to norm 25 (ours, as the other models).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import torch
+from torch import nn
+from torch.nn import functional as nnf
+
+from robot_retarget.nn.features import (
+    MotionFeatures,
+    compute_features,
+    integrate_root,
+    skeleton_height,
+)
+from robot_retarget.nn.losses import TWIST_ALPHA_RAD, twist_loss
+from robot_retarget.nn.models.batch import RetargetBatch
+from robot_retarget.nn.models.tdcn import TDCN
+from robot_retarget.nn.patch_discriminator import PatchDiscriminator, patch_inputs
+
+if TYPE_CHECKING:
+    from robot_retarget.nn.models.training import Optimizers
+
+Tensor = torch.Tensor
+
+
+@dataclass(frozen=True)
+class TDCNLossWeights:
+    """The paper's weights (section 5)."""
+
+    twist: float = 10.0
+    height: float = 10.0
+    height_root: float = 5.0
+    adversarial: float = 1.0
+    regularization: float = 0.1
+    orientation: float = 1.0
+    twist_alpha_rad: float = TWIST_ALPHA_RAD
+    grad_clip_norm: float = 25.0
+
+
+CM_PER_M = 100.0
+
+
+def motion_error(a: MotionFeatures, b: MotionFeatures) -> Tensor:
+    """‖x_a − x_b‖² per sample (B,), x = [p (cm), q, v (cm per frame; the turning rate as
+    its arc at 1 m)]: summed over features, averaged over frames."""
+    pose = (((a.local_pos - b.local_pos) * CM_PER_M) ** 2).sum((-1, -2))
+    dot = (a.local_quats * b.local_quats).sum(-1)
+    quats = (1.0 - dot**2).sum(-1)
+    move = (((a.root_vel[..., :3] - b.root_vel[..., :3]) * CM_PER_M) ** 2).sum(-1)
+    turn = ((a.root_vel[..., 3] - b.root_vel[..., 3]) * CM_PER_M) ** 2
+    return (pose + quats + move + turn).mean(-1)
+
+
+def _root_distance(f: MotionFeatures, height: Tensor) -> Tensor:
+    """‖r_t − r_0‖ / H (B, T): the root's distance from the window's start."""
+    b = f.root_vel.shape[0]
+    root, _ = integrate_root(f.root_vel, f.root_vel.new_zeros(b, 3), f.root_vel.new_zeros(b))
+    return torch.linalg.vector_norm(root, dim=-1) / height[:, None]
+
+
+def height_loss(
+    a: MotionFeatures, h_a: Tensor, b: MotionFeatures, h_b: Tensor, root_weight: float
+) -> Tensor:
+    """L_h (eq. 17) per sample (B,): joints summed, frames averaged."""
+    step_a = torch.linalg.vector_norm(a.local_pos[:, 1:] - a.local_pos[:, :-1], dim=-1)
+    step_b = torch.linalg.vector_norm(b.local_pos[:, 1:] - b.local_pos[:, :-1], dim=-1)
+    joints = nnf.smooth_l1_loss(
+        step_a / h_a[:, None, None], step_b / h_b[:, None, None], reduction="none"
+    )
+    root = nnf.smooth_l1_loss(_root_distance(a, h_a), _root_distance(b, h_b), reduction="none")
+    return joints.sum(-1).mean(-1) + root_weight * root[:, 1:].mean(-1)
+
+
+def rotation_angle(q: Tensor) -> Tensor:
+    """E(q): rotation angle (rad, [0, π]) of quaternions (…, 4)."""
+    return 2.0 * torch.atan2(torch.linalg.vector_norm(q[..., 1:], dim=-1), q[..., 0].abs())
+
+
+def _masked_mean(values: Tensor, mask: Tensor) -> float:
+    return float(values.detach()[mask].mean()) if bool(mask.any()) else 0.0
+
+
+def tdcn_training_step(
+    model: TDCN,
+    disc: PatchDiscriminator,
+    batch: RetargetBatch,
+    optimizers: Optimizers,
+    weights: TDCNLossWeights | None = None,
+) -> dict[str, float]:
+    """One generator step and one discriminator step; returns the loss terms."""
+    w = weights or TDCNLossWeights()
+    model.train()
+    disc.train()
+    src_off, tgt_off = batch.src_offsets, batch.tgt_offsets
+    h_a, h_b = skeleton_height(src_off), skeleton_height(tgt_off)
+    src = compute_features(batch.src_local_quats, batch.src_root_pos, src_off)
+    init = batch.src_root_pos[:, 0]
+    out_b = model.retarget_features(src, init, src_off, tgt_off)
+    out_a = model.retarget_features(out_b.features, init, tgt_off, src_off)
+    fb, fa = out_b.features, out_a.features
+
+    same = batch.same_skeleton.to(torch.bool)
+    cycle = motion_error(fa, src)
+    twist = w.twist * (
+        twist_loss(fb.local_quats, tgt_off, w.twist_alpha_rad)
+        + twist_loss(fa.local_quats, src_off, w.twist_alpha_rad)
+    )
+    height = w.height * height_loss(src, h_a, fb, h_b, w.height_root)
+    scores = disc(patch_inputs(fb.local_pos, fb.root_vel, tgt_off))
+    lsgan = ((scores - 1.0) ** 2).mean(-1)
+    square = motion_error(fb, src)
+    adversarial = w.adversarial * torch.where(same, square, lsgan)
+    reg = w.regularization * sum(
+        ((1.0 - out.extras["quat_norm"]) ** 2).sum(-1).mean(-1) for out in (out_a, out_b)
+    )
+    orient = w.orientation * nnf.smooth_l1_loss(
+        rotation_angle(fb.local_quats[..., 0, :]),
+        rotation_angle(src.local_quats[..., 0, :]),
+        reduction="none",
+    ).mean(-1)
+    total = (cycle + twist + height + adversarial + reg + orient).mean()
+    optimizers.generator.zero_grad(set_to_none=True)
+    total.backward()  # type: ignore[no-untyped-call]
+    nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
+    optimizers.generator.step()
+
+    losses = {
+        "total": float(total.detach()),
+        "cycle": float(cycle.detach().mean()),
+        "twist": float(twist.detach().mean()),
+        "height": float(height.detach().mean()),
+        "square": _masked_mean(square, same),
+        "adversarial": _masked_mean(lsgan, ~same),
+        "regularization": float(torch.as_tensor(reg).detach().mean()),
+        "orientation": float(orient.detach().mean()),
+    }
+    other = ~same
+    d_opt = optimizers.discriminator
+    if d_opt is not None and bool(other.any()):
+        d_opt.zero_grad(set_to_none=True)
+        real = disc(patch_inputs(src.local_pos, src.root_vel, src_off))
+        fake = disc(patch_inputs(fb.local_pos.detach(), fb.root_vel.detach(), tgt_off))
+        d_loss = (((real - 1.0) ** 2).mean(-1) + (fake**2).mean(-1))[other].mean()
+        d_loss.backward()
+        d_opt.step()
+        losses["discriminator"] = float(d_loss.detach())
+        losses["disc_fake_score"] = float(fake.detach()[other].mean())
+    return losses
