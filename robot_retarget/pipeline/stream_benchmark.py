@@ -25,6 +25,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 HELP = "Live stream on the simulated bus: late frames and tick jitter, with and without --view."
 
 _CHROMIUM_FLAGS = (
@@ -141,6 +143,8 @@ def _one_run(
     }
     if page is not None:
         record["published"] = page.published
+        record["publish_median_ms"] = float(np.median(page.publish_s)) * 1e3
+        record["publish_p99_ms"] = float(np.percentile(page.publish_s, 99)) * 1e3
     return record
 
 

@@ -13,6 +13,7 @@ velocity limit.
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from typing import Any
@@ -76,6 +77,7 @@ class LivePage:
             maxlen=n
         )
         self.published = 0  # frames drawn (the loop's other ticks are skipped, never queued)
+        self.publish_s: deque[float] = deque(maxlen=4096)  # time each publish took (thread)
         self._build_gui()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._publish_loop, name="view-live", daemon=True)
@@ -159,7 +161,9 @@ class LivePage:
             frame = self.mailbox.latest()
             if frame is not None and frame is not last:
                 last = frame
+                t0 = time.perf_counter()
                 self._publish(frame)
+                self.publish_s.append(time.perf_counter() - t0)
 
     def _publish(self, frame: LiveFrame) -> None:
         measured = self.measure() if self.measure is not None else None
