@@ -88,7 +88,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--ray-address",
-        help="folder input: run the clips on an existing Ray cluster (ray://HOST:10001 or auto)",
+        help="folder input: run the clips on an existing Ray cluster (HOST:6379, ray://HOST:10001 "
+        "or auto); without --workers, one worker per CPU of the cluster",
     )
 
 
@@ -235,12 +236,12 @@ def _run_batch(args: argparse.Namespace) -> int:
     from robot_retarget.pipeline.manifest import Manifest
     from robot_retarget.sources.keypoints import is_keypoint_input
 
-    workers = 1 if args.workers is None else args.workers
-    if workers < 1:
+    workers: int | None = args.workers
+    if workers is not None and workers < 1:
         raise RetargetError(f"--workers must be at least 1, got {workers}")
-    on_ray = workers > 1 or args.ray_address is not None
+    on_ray = (workers or 1) > 1 or args.ray_address is not None
     if on_ray:
-        import_ray(workers)  # before any work: says how to install the [scale] extra
+        import_ray(workers or 0)  # before any work: says how to install the [scale] extra
     src: Path = args.input
     if not src.is_dir() or is_keypoint_input(src):
         raise RetargetError(
@@ -259,7 +260,7 @@ def _run_batch(args: argparse.Namespace) -> int:
     manifest = Manifest.open(args.out, settings, fresh=args.force)
     jobs = _plan(args, lambda clip: manifest.owns(clip_key(clip, src)))
     plan = plan_batch(jobs, src, manifest)
-    where = f"Ray at {args.ray_address}" if args.ray_address else f"{workers} worker(s)"
+    where = f"Ray at {args.ray_address}" if args.ray_address else f"{workers or 1} worker(s)"
     print(
         f"robot {options.robot}, model {options.model}, {len(jobs)} clip(s): "
         f"{len(plan.skipped)} already done (manifest {manifest.path}), "

@@ -10,7 +10,8 @@ first, so the last clips to finish are short ones. A worker that dies (killed, o
 fails only the clip it held, which is reported like any other failure; a fresh worker takes its
 place and the job goes on. ``ray.init(address=...)`` joins an existing cluster (its nodes need
 robot-retarget installed and the input and output folders on a shared file system); without
-an address a local Ray instance with ``num_cpus=workers`` is started and shut down again.
+an address a local Ray instance with ``num_cpus=workers`` is started and shut down again. On a
+cluster without a worker count, one worker per CPU the cluster has.
 """
 
 from __future__ import annotations
@@ -34,14 +35,16 @@ SCALE_INSTALL = 'python3 -m pip install "robot-retarget[scale]"  (or: pip instal
 
 class ScaleExtraMissingError(RetargetError):
     """``--workers`` > 1 or ``--ray-address`` needs Ray, which is not installed.
-    ``workers``: the workers asked for; ``install_command``: what installs it."""
+    ``workers``: the workers asked for (0: a cluster's, --ray-address); ``install_command``:
+    what installs it."""
 
     def __init__(self, workers: int, reason: str) -> None:
         self.workers = workers
         self.install_command = SCALE_INSTALL
         self.reason = reason
+        asked = f"--workers {workers}" if workers else "--ray-address"
         super().__init__(
-            f"--workers {workers} runs clips on Ray, which cannot be imported ({reason}); "
+            f"{asked} runs clips on Ray, which cannot be imported ({reason}); "
             f"install the [scale] extra: {SCALE_INSTALL}, or run with --workers 1"
         )
 
@@ -102,14 +105,18 @@ class _ClipWorker:
 class RayClipPool:
     """``workers`` Ray actors converting clips; see the module docstring."""
 
-    def __init__(self, options: ConvertOptions, workers: int, address: str | None = None) -> None:
-        if workers < 1:
+    def __init__(
+        self, options: ConvertOptions, workers: int | None, address: str | None = None
+    ) -> None:
+        if workers is not None and workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
+        if workers is None and address is None:
+            raise ValueError("a local Ray instance needs a worker count")
         self.options = options
-        self.workers = workers
+        self.workers = workers or 0  # 0 until an existing cluster says how many CPUs it has
         self.address = address
         self.startup_s = 0.0
-        self.ray = import_ray(workers)
+        self.ray = import_ray(workers or 0)
         self._started_ray = False
         self._actor_class: Any = None
         self._actors: list[Any] = []
@@ -128,6 +135,8 @@ class RayClipPool:
             else:
                 ray.init(address=self.address, log_to_driver=False, logging_level="warning")
             self._started_ray = True
+        if not self.workers:  # one worker per CPU of the cluster joined
+            self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         self._actor_class = ray.remote(num_cpus=1)(_ClipWorker)
         self._actors = [self._new_actor() for _ in range(self.workers)]
         ray.get([a.ready.remote() for a in self._actors])  # every solver built before clip 1
