@@ -110,6 +110,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
+    parser.add_argument(
+        "--loader-workers",
+        type=int,
+        default=0,
+        metavar="N",
+        help="agnostic2d: N processes render the camera views ahead of the training step "
+        "(default 0: in the training process; the batches are the same either way)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -249,6 +257,8 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
         model_config=_model_config(args.model_config),
         max_frames=args.max_frames,
         cache_dir=args.cache_dir,
+        device=args.device,
+        loader_workers=args.loader_workers,
     )
 
     def show(p: KeypointProgress) -> None:

@@ -22,9 +22,11 @@ import csv
 import hashlib
 import json
 import math
+import multiprocessing
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -82,6 +84,8 @@ class KeypointTrainConfig:
     model_config: dict[str, Any] = field(default_factory=dict)
     max_frames: int | None = None
     cache_dir: str | None = None
+    device: str = "cpu"  # "cuda" where a GPU is lent; batches are still rendered on the CPU
+    loader_workers: int = 0  # processes rendering batches ahead of the training step
 
 
 @dataclass(frozen=True)
@@ -146,6 +150,10 @@ class TwoViewSampler:
 
     def sample(self, step: int) -> RenderedBatch:
         """Views A (first half) and B (second half) of ``batch_size`` windows."""
+        return _to_tensors(*self.sample_arrays(step))
+
+    def sample_arrays(self, step: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`sample` as float32 arrays (features, targets): what a loader process returns."""
         rng = np.random.default_rng([self.seed, step])
         views: list[list[tuple[FloatArray, FloatArray, FloatArray]]] = [[], []]
         for _ in range(self.batch_size):
@@ -160,14 +168,53 @@ class TwoViewSampler:
         return _stack(views[0] + views[1])
 
 
-def _stack(items: Sequence[tuple[FloatArray, FloatArray, FloatArray]]) -> RenderedBatch:
+def _stack(
+    items: Sequence[tuple[FloatArray, FloatArray, FloatArray]],
+) -> tuple[np.ndarray, np.ndarray]:
     px = np.stack([i[0] for i in items])
     valid = np.stack([i[1] for i in items]) > 0.5
     feats = normalize_sequences(px, valid)
     targets = np.stack([i[2] for i in items])
+    return feats.astype(np.float32), targets.astype(np.float32)
+
+
+def _to_tensors(feats: np.ndarray, targets: np.ndarray) -> RenderedBatch:
+    return RenderedBatch(torch.from_numpy(feats), torch.from_numpy(targets))
+
+
+def _on(batch: RenderedBatch, device: torch.device) -> RenderedBatch:
+    if device.type == "cpu":
+        return batch
     return RenderedBatch(
-        torch.from_numpy(feats.astype(np.float32)), torch.from_numpy(targets.astype(np.float32))
+        batch.features.to(device, non_blocking=True), batch.targets.to(device, non_blocking=True)
     )
+
+
+_LOADER_SAMPLER: TwoViewSampler | None = None  # a loader process's sampler (inherited by fork)
+
+
+def _loader_sample(step: int) -> tuple[np.ndarray, np.ndarray]:
+    assert _LOADER_SAMPLER is not None
+    return _LOADER_SAMPLER.sample_arrays(step)
+
+
+@contextmanager
+def rendered_batches(
+    sampler: TwoViewSampler, steps: range, workers: int
+) -> Iterator[Iterator[RenderedBatch]]:
+    """The batches of ``steps`` in order, rendered by ``workers`` forked processes ahead of the
+    training step (0: in this process). A batch is a pure function of (seed, step), so the
+    batches, and the training run, are the same whatever the number of workers."""
+    if workers <= 0:
+        yield (sampler.sample(step) for step in steps)
+        return
+    global _LOADER_SAMPLER
+    _LOADER_SAMPLER = sampler  # read by the forked processes, never pickled
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(workers) as pool:
+        arrays = pool.imap(_loader_sample, steps, chunksize=1)
+        yield (_to_tensors(f, t) for f, t in arrays)
+    _LOADER_SAMPLER = None
 
 
 def validation_batch(
@@ -188,7 +235,7 @@ def validation_batch(
             items.append(
                 render_window(clip, start, window_frames, clip.offsets, cam, rng, EstimatorNoise())
             )
-    return _stack(items)
+    return _to_tensors(*_stack(items))
 
 
 # ------------------------------------------------------------------------------ losses
@@ -340,7 +387,8 @@ def train_agnostic2d(
     config = dict(cfg.model_config)
     if "dilations" in config:
         config["dilations"] = tuple(config["dilations"])
-    model = KEYPOINT_MODELS[Agnostic2D.name](**config)
+    device = _device(cfg.device)
+    model = KEYPOINT_MODELS[Agnostic2D.name](**config).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, amsgrad=True)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(
         opt, T_max=max(cfg.steps, 1), eta_min=cfg.lr * 0.05
@@ -348,7 +396,7 @@ def train_agnostic2d(
     sampler = TwoViewSampler(
         train_set, window_frames=cfg.window_frames, batch_size=cfg.batch_size, seed=cfg.seed
     )
-    val_batch = validation_batch(val_set, cfg.window_frames)
+    val_batch = _on(validation_batch(val_set, cfg.window_frames), device)
     meta_base = {
         "train_subjects": list(train_set.subjects),
         "validation_subjects": list(val_set.subjects),
@@ -363,38 +411,39 @@ def train_agnostic2d(
     best_val: dict[str, float] = {}
     t0 = time.monotonic()
     rng = np.random.default_rng([cfg.seed, 99])
-    for step in range(1, cfg.steps + 1):
-        model.train()
-        batch = sampler.sample(step)
-        parts = losses(model, batch, causal=bool(rng.random() < 0.5), cfg=cfg)
-        opt.zero_grad()
-        parts["total"].backward()  # type: ignore[no-untyped-call]
-        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
-        opt.step()
-        sched.step()
-        scalars = {k: float(v.detach()) for k, v in parts.items()}
-        val: dict[str, float] | None = None
-        if step % cfg.val_every == 0 or step == cfg.steps:
-            val = _validate(model, val_batch)
-            meta = {**meta_base, "step": step, "validation": val}
-            save_keypoint_checkpoint(
-                out / "last.pt", model, data_hash=train_set.data_hash, metadata=meta
-            )
-            if val["direction_error_deg_causal"] < best:
-                best = val["direction_error_deg_causal"]
-                best_val = val
+    with rendered_batches(sampler, range(1, cfg.steps + 1), cfg.loader_workers) as batches:
+        for step, cpu_batch in enumerate(batches, start=1):
+            model.train()
+            batch = _on(cpu_batch, device)
+            parts = losses(model, batch, causal=bool(rng.random() < 0.5), cfg=cfg)
+            opt.zero_grad()
+            parts["total"].backward()  # type: ignore[no-untyped-call]
+            torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+            opt.step()
+            sched.step()
+            scalars = {k: float(v.detach()) for k, v in parts.items()}
+            val: dict[str, float] | None = None
+            if step % cfg.val_every == 0 or step == cfg.steps:
+                val = _validate(model, val_batch)
+                meta = {**meta_base, "step": step, "validation": val}
                 save_keypoint_checkpoint(
-                    out / "best.pt", model, data_hash=train_set.data_hash, metadata=meta
+                    out / "last.pt", model, data_hash=train_set.data_hash, metadata=meta
                 )
-        elapsed = time.monotonic() - t0
-        with log_path.open("a", newline="") as fh:
-            w = csv.writer(fh)
-            for k, v in scalars.items():
-                w.writerow([step, f"{elapsed:.1f}", "train", k, f"{v:.6g}"])
-            for k, v in (val or {}).items():
-                w.writerow([step, f"{elapsed:.1f}", "val", k, f"{v:.6g}"])
-        if progress is not None:
-            progress(KeypointProgress(step, cfg.steps, scalars, val, elapsed))
+                if val["direction_error_deg_causal"] < best:
+                    best = val["direction_error_deg_causal"]
+                    best_val = val
+                    save_keypoint_checkpoint(
+                        out / "best.pt", model, data_hash=train_set.data_hash, metadata=meta
+                    )
+            elapsed = time.monotonic() - t0
+            with log_path.open("a", newline="") as fh:
+                w = csv.writer(fh)
+                for k, v in scalars.items():
+                    w.writerow([step, f"{elapsed:.1f}", "train", k, f"{v:.6g}"])
+                for k, v in (val or {}).items():
+                    w.writerow([step, f"{elapsed:.1f}", "val", k, f"{v:.6g}"])
+            if progress is not None:
+                progress(KeypointProgress(step, cfg.steps, scalars, val, elapsed))
     return {
         "out": str(out),
         "best": str(out / "best.pt"),
@@ -403,6 +452,12 @@ def train_agnostic2d(
         "best_validation": best_val,
         "data_hash": train_set.data_hash,
     }
+
+
+def _device(name: str) -> torch.device:
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise KeypointTrainError("--device cuda asked for, but torch sees no CUDA device; use cpu")
+    return torch.device(name)
 
 
 def _validate(model: Agnostic2D, batch: RenderedBatch) -> dict[str, float]:

@@ -20,6 +20,7 @@ from robot_retarget.nn.agnostic2d_training import (
     TwoViewSampler,
     load_keypoint_checkpoint,
     render_window,
+    rendered_batches,
 )
 from robot_retarget.nn.dataset import load_dataset
 from robot_retarget.nn.models.agnostic2d import rotation_6d_to_matrix
@@ -48,6 +49,20 @@ def test_batches_are_reproducible_and_targets_turn_with_the_camera(
 
 
 @pytest.mark.data
+def test_loader_processes_render_the_same_batches_in_order(shared_data_dir: Path) -> None:
+    train, _val = load_dataset(shared_data_dir / "mocap", max_frames=240).split()
+    sampler = TwoViewSampler(train, window_frames=32, batch_size=2, seed=3)
+    with rendered_batches(sampler, range(1, 6), 0) as inline:
+        expected = list(inline)
+    with rendered_batches(sampler, range(1, 6), 2) as ahead:
+        got = list(ahead)
+    assert len(got) == 5
+    for e, g in zip(expected, got, strict=True):
+        assert torch.equal(e.features, g.features)
+        assert torch.equal(e.targets, g.targets)
+
+
+@pytest.mark.data
 def test_train_command_writes_loadable_checkpoints(shared_data_dir: Path, tmp_path: Path) -> None:
     parser = argparse.ArgumentParser()
     train_cmd.configure(parser)
@@ -57,7 +72,7 @@ def test_train_command_writes_loadable_checkpoints(shared_data_dir: Path, tmp_pa
          "--steps", "4", "--batch-size", "2", "--window", "32", "--val-every", "2",
          "--max-frames", "240", "--quiet", "--model-config", "channels=16",
          "--model-config", "static_hidden=8", "--model-config", "head_hidden=16",
-         "--loss-weight", "limb=2"]
+         "--loss-weight", "limb=2", "--loader-workers", "1"]
     )  # fmt: skip
     assert train_cmd.run(args) == 0
     model, payload = load_keypoint_checkpoint(out / "best.pt")
