@@ -28,7 +28,7 @@ from robot_retarget.viewer.robot_scene import MEASURED_RGB, ROBOT_RGB, StickFigu
 from robot_retarget.viewer.scene import RobotFigure
 
 PUBLISH_HZ = 30.0
-PLOT_EVERY = 3  # publishes per plot update: plots refresh at 10 Hz
+PLOT_EVERY = 3  # publishes per panel and plot update: they refresh at 10 Hz
 PLOT_WINDOW_S = 10.0
 _CLIP_TOL_RAD = 1e-12
 
@@ -69,7 +69,12 @@ class LivePage:
             self.server, "/commanded", standing, ROBOT_RGB, thickness_m=thickness
         )
         self._measured = StickFigure(
-            self.server, "/measured", standing, MEASURED_RGB, thickness_m=0.5 * thickness
+            self.server,
+            "/measured",
+            standing,
+            MEASURED_RGB,
+            thickness_m=0.5 * thickness,
+            dots=False,
         )
         self._measured.visible = measure is not None
         n = max(int(PLOT_WINDOW_S * min(publish_hz, PUBLISH_HZ)), 2)
@@ -78,6 +83,7 @@ class LivePage:
         )
         self.published = 0  # frames drawn (the loop's other ticks are skipped, never queued)
         self.publish_s: deque[float] = deque(maxlen=4096)  # time each publish took (thread)
+        self._last_news: tuple[str, int] = ("", -1)
         self._build_gui()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._publish_loop, name="view-live", daemon=True)
@@ -166,25 +172,32 @@ class LivePage:
                 self.publish_s.append(time.perf_counter() - t0)
 
     def _publish(self, frame: LiveFrame) -> None:
+        """The pose every publish; the panel and plots every PLOT_EVERY-th (fewer messages:
+        the publisher holds the interpreter lock the loop needs for less time)."""
         measured = self.measure() if self.measure is not None else None
         self._history.append((frame.t_s, frame.q_target, frame.q_cmd, measured))
-        clipped = np.abs(frame.q_target - frame.q_cmd) > _CLIP_TOL_RAD
-        names = [n for n, c in zip(self.config.joint_names, clipped, strict=True) if c]
+        # A new mode or a new clip is shown at once; the rest can wait for the next refresh.
+        news = (frame.mode, frame.commands_clipped) != self._last_news
+        self._last_news = (frame.mode, frame.commands_clipped)
         with self.server.atomic():
             self._commanded.update(self.figure.segments(frame.q_cmd, self._root_pos))
             if measured is not None:
                 self._measured.update(self.figure.segments(measured, self._root_pos))
-            self._mode.value = frame.mode
-            self._silence.value = f"{frame.silence_s * 1e3:.0f}"
-            self._latency.value = (
-                "-" if np.isnan(frame.latency_s) else f"{frame.latency_s * 1e3:.2f}"
-            )
-            self._jitter.value = f"{frame.jitter_s * 1e3:.2f}"
-            self._clips.value = str(frame.commands_clipped)
-            self._clipped_now.value = ", ".join(names) or "-"
-        self.published += 1
+            if news or self.published % PLOT_EVERY == 0:
+                self._update_panel(frame)
         if self.published % PLOT_EVERY == 0:
             self._update_plots()
+        self.published += 1
+
+    def _update_panel(self, frame: LiveFrame) -> None:
+        clipped = np.abs(frame.q_target - frame.q_cmd) > _CLIP_TOL_RAD
+        names = [n for n, c in zip(self.config.joint_names, clipped, strict=True) if c]
+        self._mode.value = frame.mode
+        self._silence.value = f"{frame.silence_s * 1e3:.0f}"
+        self._latency.value = "-" if np.isnan(frame.latency_s) else f"{frame.latency_s * 1e3:.2f}"
+        self._jitter.value = f"{frame.jitter_s * 1e3:.2f}"
+        self._clips.value = str(frame.commands_clipped)
+        self._clipped_now.value = ", ".join(names) or "-"
 
     def _update_plots(self) -> None:
         if len(self._history) < 2:

@@ -42,23 +42,28 @@ class StickFigure:
         rgb: tuple[int, int, int],
         *,
         thickness_m: float,
+        dots: bool = True,
     ) -> None:
         seg = np.asarray(segments, dtype=np.float32)
         self._links = server.scene.add_line_segments(
             f"{name}/links", points=seg, colors=rgb, thickness=thickness_m
         )
-        self._joints = server.scene.add_point_cloud(
-            f"{name}/joints",
-            points=seg.reshape(-1, 3),
-            colors=rgb,
-            point_size=1.6 * thickness_m,
-            point_shape="circle",
-        )
+        # Dots on the joints: one more scene message per update (a live overlay goes without).
+        self._joints = None
+        if dots:
+            self._joints = server.scene.add_point_cloud(
+                f"{name}/joints",
+                points=seg.reshape(-1, 3),
+                colors=rgb,
+                point_size=1.6 * thickness_m,
+                point_shape="circle",
+            )
 
     def update(self, segments: npt.ArrayLike) -> None:
         seg = np.asarray(segments, dtype=np.float32)
         self._links.points = seg
-        self._joints.points = seg.reshape(-1, 3)
+        if self._joints is not None:
+            self._joints.points = seg.reshape(-1, 3)
 
     @property
     def visible(self) -> bool:
@@ -67,4 +72,5 @@ class StickFigure:
     @visible.setter
     def visible(self, value: bool) -> None:
         self._links.visible = value
-        self._joints.visible = value
+        if self._joints is not None:
+            self._joints.visible = value

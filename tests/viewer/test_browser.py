@@ -10,7 +10,6 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 import pytest
-from conftest import HeadlessChromium
 
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.trajectory import RobotTrajectory
@@ -18,6 +17,7 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.loader import load_robot_config
 from robot_retarget.viewer.robot_scene import ROBOT_RGB
 from robot_retarget.viewer.scene import RobotFigure
+from tests.viewer.chromium import HeadlessChromium
 
 TIME_LIMIT_S = 120
 COLOUR_TOLERANCE = 12  # per channel: the lines are unlit, only their anti-aliased edges blend

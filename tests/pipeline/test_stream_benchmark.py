@@ -1,0 +1,36 @@
+"""bench stream: a plain and a watched run on the simulated bus, each reporting its ticks."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from robot_retarget.pipeline import stream_benchmark
+
+TIME_LIMIT_S = 120
+
+
+def _args(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    stream_benchmark.configure(parser)
+    return parser.parse_args(list(argv))
+
+
+def test_plain_and_watched_runs_are_reported() -> None:
+    pytest.importorskip("viser", reason="--view needs the [view] extra (pip install viser)")
+    records = stream_benchmark.run(_args("--seconds", "1.0", "--repeats", "1", "--view"))
+    assert [r["variant"] for r in records] == ["plain", "view (ws)"]
+    for r in records:
+        assert r["ticks"] > 50  # 125 Hz for 1 s, less what a busy machine overran
+        assert r["jitter_median_ms"] >= 0.0
+    watched = records[1]
+    assert watched["published"] > 0  # the page drew frames while a client read them
+    assert watched["publish_median_ms"] > 0.0
+
+
+def test_bad_settings_are_refused() -> None:
+    from robot_retarget.errors import RetargetError
+
+    with pytest.raises(RetargetError, match="--repeats"):
+        stream_benchmark.run(_args("--repeats", "0"))
