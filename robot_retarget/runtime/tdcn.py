@@ -87,9 +87,14 @@ def _canonical(q: FloatArray) -> FloatArray:
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
+_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+
+
 def _unit(q: FloatArray) -> FloatArray:
+    """Unit quaternions (…, 4); a (near-)zero one becomes the identity, so whatever a
+    sender or the network produces, the optimizer gets rotations."""
     n = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
-    return np.asarray(q / np.maximum(n, 1e-12))
+    return np.where(n > 1e-12, q / np.maximum(n, 1e-12), _IDENTITY)
 
 
 class _Head:
@@ -283,6 +288,9 @@ class FastTDCNRetargeter:
     ) -> tuple[FloatArray, FloatArray]:
         """One frame: (22, 4), (3,) → target rotations (22, 4) and root position (3,)."""
         q, root = check_frame(local_quats, root_pos)
+        # Scaled quaternions from a sender are still rotations: make them unit (the torch
+        # model assumes unit input; for unit input this changes nothing beyond rounding).
+        q = _unit(q)
         vel3, dyaw = self._stream.push(q, root)  # q is heading-free from here
         vel = np.array([vel3[0], vel3[1], vel3[2], dyaw])
         pose = self._kin.positions(matrices(q), self._src).reshape(-1)
