@@ -354,7 +354,7 @@ class DynamixelBus:
             raise CommunicationError(f"bus {self.name}: fast sync read: bad reply header")
         if p.packet_length_v2(raw) != total:
             raise CommunicationError(f"bus {self.name}: fast sync read: bad reply length")
-        if p.crc16(raw[:-2]) != (raw[-2] | raw[-1] << 8):
+        if p.crc16_packet(raw[:-2]) != (raw[-2] | raw[-1] << 8):
             raise CommunicationError(f"bus {self.name}: fast sync read: CRC mismatch")
         # Per servo: ERR, ID, DATA…, CRC_L, CRC_H (the running CRC, checked above as a whole).
         rows = np.frombuffer(raw, dtype=np.uint8, count=n * (size + 4), offset=8).reshape(

@@ -206,6 +206,25 @@ class DynamixelBackend(JointBackend):
         self._old_handlers: dict[int, Any] = {}
         self.last_packets: dict[str, bytes] = {}  # bus name → last goal Sync Write sent
 
+    # ----- per bus -----------------------------------------------------------------------------
+    def _group(self, bus_name: str) -> _BusGroup:
+        for g in self._groups:
+            if g.name == bus_name:
+                return g
+        raise KeyError(f"robot {self.config.name} has no bus {bus_name!r}")
+
+    def bus(self, bus_name: str) -> DynamixelBus:
+        """The DynamixelBus of config bus ``bus_name``."""
+        return self._group(bus_name).bus
+
+    def state_block(self, bus_name: str) -> StateBlock:
+        """The registers read from every servo of ``bus_name`` each tick."""
+        return self._group(bus_name).state
+
+    def uses_fast_sync_read(self, bus_name: str) -> bool:
+        """Whether ``bus_name`` is read by Fast Sync Read (known after connect: firmware)."""
+        return self._group(bus_name).fast
+
     # ----- lifecycle -------------------------------------------------------------------------
     @property
     def connected(self) -> bool:
@@ -422,9 +441,17 @@ class DynamixelBackend(JointBackend):
             ticks = self.units.to_ticks(q)
         for g in self._groups:
             self._write_goals(g, ticks)
-        sent = self.units.from_ticks(ticks)
+        sent = self._rad_from_ticks(ticks)
         self._last_q = np.asarray(q, dtype=np.float64).copy()
         return sent
+
+    def _rad_from_ticks(self, ticks: IntArray) -> FloatArray:
+        """ServoUnits.from_ticks for one (J,) int64 vector, without its generic argument checks
+        (a quarter of its cost per tick); a tick outside the model's range still raises there."""
+        u = self.units
+        if ticks.min() < 0 or np.any(ticks > u.max_tick):
+            return u.from_ticks(ticks)  # raises ServoRangeError naming the joint
+        return ((ticks - u.zero_tick) * u.rad_per_tick - u.zero_offset_rad) * u.direction
 
     def _check_joint_limits(self, q: FloatArray) -> None:
         """Defence in depth: the SafetyLayer in front clamps to the limits, but a backend used on
@@ -552,14 +579,15 @@ class DynamixelBackend(JointBackend):
                 timer.lap("read")
             self._check_faults(g, errors)
             block, idx = g.state, g.joints
+            rec = block.records(data)
             speed = "present_velocity" if "present_velocity" in block else "present_speed"
-            ticks[idx] = block.decode(data, "present_position")
-            vel[idx] = g.direction * block.decode(data, speed) * g.velocity_unit_rad_s
-            load[idx] = g.direction * block.decode(data, "present_load") / g.full_load
+            ticks[idx] = block.value(rec, "present_position")
+            vel[idx] = g.direction * block.value(rec, speed) * g.velocity_unit_rad_s
+            load[idx] = g.direction * block.value(rec, "present_load") / g.full_load
             if "present_temperature" in block:
-                self._temperature[idx] = block.decode(data, "present_temperature")
+                self._temperature[idx] = block.value(rec, "present_temperature")
         state = JointState(
-            q=self.units.from_ticks(ticks),
+            q=self._rad_from_ticks(ticks),
             velocity=vel,
             load=load,
             temperature=self._temperature,

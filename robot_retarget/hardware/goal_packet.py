@@ -61,7 +61,7 @@ class GoalPacket:
             if _STUFFING_PATTERN in body:
                 return p.build_v2(p.BROADCAST_ID, p.INST_SYNC_WRITE, self._params_head + body)
             packet = self._prefix + body
-            crc = p.crc16(packet)
+            crc = p.crc16_packet(packet)
             return packet + bytes((crc & 0xFF, crc >> 8))
         total = self._prefix_sum + int(self._slots[:, 1:].sum(dtype=np.int64))
         return self._prefix + body + bytes(((~total) & 0xFF,))

@@ -111,15 +111,21 @@ def crc16(data: bytes | bytearray, crc: int = 0) -> int:
     """CRC-16/BUYPASS (poly 0x8005, init 0, no reflection) as the Protocol 2.0 manual gives it.
 
     ``crc`` continues a CRC over earlier bytes."""
-    n = len(data)
-    if crc == 0 and _CRC_NUMPY_MIN_BYTES <= n <= _CRC_MAX_POSITIONS:
-        table_flat = _crc_position_table()
-        index = np.arange((n - 1) * 256, -1, -256) + np.frombuffer(data, dtype=np.uint8)
-        return int(np.bitwise_xor.reduce(table_flat[index]))
     table = _CRC_TABLE
     for b in data:
         crc = ((crc << 8) ^ table[((crc >> 8) ^ b) & 0xFF]) & 0xFFFF
     return crc
+
+
+def crc16_packet(data: bytes | bytearray) -> int:
+    """:func:`crc16` of a whole packet, by the per-position table from 64 bytes on: what the
+    backend computes every tick (goal Sync Write, Fast Sync Read reply)."""
+    n = len(data)
+    if not _CRC_NUMPY_MIN_BYTES <= n <= _CRC_MAX_POSITIONS:
+        return crc16(data)
+    table_flat = _crc_position_table()
+    index = np.arange((n - 1) * 256, -1, -256) + np.frombuffer(data, dtype=np.uint8)
+    return int(np.bitwise_xor.reduce(table_flat[index]))
 
 
 def checksum_v1(body: bytes | bytearray) -> int:

@@ -51,6 +51,18 @@ class StateBlock:
             )
             for r in regs
         }
+        # Sign-magnitude registers are read unsigned; value() applies the direction bit.
+        self._dtype = np.dtype(
+            {
+                "names": [f.name for f in self._fields.values()],
+                "formats": [
+                    f"<{'i' if f.signed and f.sign_magnitude_bit is None else 'u'}{f.size}"
+                    for f in self._fields.values()
+                ],
+                "offsets": [f.offset for f in self._fields.values()],
+                "itemsize": self.size,
+            }
+        )
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -69,21 +81,24 @@ class StateBlock:
         except KeyError:
             return False
 
+    def records(self, data: ByteMatrix) -> npt.NDArray[np.void]:
+        """Every servo's block as one record with a field per register (a view, no decoding
+        loop): ``data`` holds one block per row."""
+        return np.ascontiguousarray(data).view(self._dtype)[:, 0]
+
+    def value(self, records: npt.NDArray[np.void], name: str) -> IntArray:
+        """Register ``name`` of every servo, from :meth:`records`."""
+        raw = records[name].astype(np.int64)
+        f = self._fields[name]
+        if f.sign_magnitude_bit is None:
+            return raw
+        bit = 1 << f.sign_magnitude_bit
+        magnitude = raw & (bit - 1)
+        return np.where(raw & bit, -magnitude, magnitude)
+
     def decode(self, data: ByteMatrix, name: str) -> IntArray:
         """Register ``name`` of every servo: ``data`` holds one block per row."""
-        f = self._fields[name]
-        cols = data[:, f.offset : f.offset + f.size].astype(np.int64)
-        value = cols[:, 0].copy()
-        for k in range(1, f.size):
-            value |= cols[:, k] << (8 * k)
-        if f.sign_magnitude_bit is not None:
-            bit = 1 << f.sign_magnitude_bit
-            magnitude = value & (bit - 1)
-            return np.where(value & bit, -magnitude, magnitude)
-        if f.signed:
-            half = 1 << (8 * f.size - 1)
-            value -= (value >= half) * (half << 1)
-        return value
+        return self.value(self.records(data), name)
 
 
 def stack_blocks(blocks: Sequence[bytes], size: int) -> ByteMatrix:

@@ -59,8 +59,8 @@ def test_protocol1_too_many_servos_is_refused() -> None:
 @settings(max_examples=100)
 @given(st.binary(min_size=64, max_size=1100))
 def test_long_packet_crc_matches_the_bytewise_loop(data: bytes) -> None:
-    # protocol.crc16 takes the per-position table path from 64 bytes on.
+    # crc16_packet takes the per-position table path from 64 bytes on.
     crc = 0
     for b in data:
         crc = ((crc << 8) ^ p._CRC_TABLE[((crc >> 8) ^ b) & 0xFF]) & 0xFFFF
-    assert p.crc16(data) == crc
+    assert p.crc16_packet(data) == crc == p.crc16(data)
