@@ -17,6 +17,13 @@
 - L_r (eq. 22): (1 − ‖q̂‖)² on the raw rotation outputs of both passes.
 - L_o (eq. 23): smooth-L1 between the rotation angles of A's and B's heading-free root.
 
+Optional (ours, off by default: the paper's objective alone): the project's eval metrics as
+losses (robot_retarget.nn.retarget_losses: ``effector``, ``contact``, ``bone``, ``skate``) and
+``denoise``: a corrupted copy of the source (robot_retarget.nn.corruption) goes through the
+model and its output is pulled onto the clean pass's (detached), the ``eval`` denoising metric.
+With the paper's objective alone nothing rewards leaving copy-scaled: the cycle is met by any
+invertible map, the height loss by scaling, and the adversarial term by real motion.
+
 The discriminator learns real motion from the sources themselves (its inputs are normalised by
 height, so any performer's motion is real motion for any skeleton; robots have no recorded
 motion), least squares, on the samples whose target differs from the source. Adam (lr 1e-4);
@@ -32,6 +39,7 @@ import torch
 from torch import nn
 from torch.nn import functional as nnf
 
+from robot_retarget.nn.corruption import CorruptionRanges, corrupt_batch
 from robot_retarget.nn.features import (
     MotionFeatures,
     compute_features,
@@ -42,8 +50,18 @@ from robot_retarget.nn.losses import TWIST_ALPHA_RAD, twist_loss
 from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.tdcn import TDCN
 from robot_retarget.nn.patch_discriminator import PatchDiscriminator, patch_inputs
+from robot_retarget.nn.retarget_losses import (
+    bone_direction_loss,
+    contact_loss,
+    denoising_loss,
+    effector_loss,
+    foot_contacts,
+    foot_skate_loss,
+    global_positions,
+)
 
 if TYPE_CHECKING:
+    from robot_retarget.nn.models.base import RetargetOutput
     from robot_retarget.nn.models.training import Optimizers
 
 Tensor = torch.Tensor
@@ -61,6 +79,11 @@ class TDCNLossWeights:
     orientation: float = 1.0
     twist_alpha_rad: float = TWIST_ALPHA_RAD
     grad_clip_norm: float = 25.0
+    effector: float = 0.0
+    contact: float = 0.0
+    bone: float = 0.0
+    skate: float = 0.0
+    denoise: float = 0.0
 
 
 CM_PER_M = 100.0
@@ -106,12 +129,48 @@ def _masked_mean(values: Tensor, mask: Tensor) -> float:
     return float(values.detach()[mask].mean()) if bool(mask.any()) else 0.0
 
 
+def metric_losses(
+    model: TDCN,
+    batch: RetargetBatch,
+    src: MotionFeatures,
+    out_b: RetargetOutput,
+    w: TDCNLossWeights,
+    fps: float,
+) -> dict[str, Tensor]:
+    """The optional terms (see the module docstring), weighted, per sample (B,); only those
+    with a weight above zero."""
+    src_off, tgt_off = batch.src_offsets, batch.tgt_offsets
+    pos_b = out_b.features.local_pos
+    terms: dict[str, Tensor] = {}
+    if w.effector > 0.0:
+        terms["effector"] = w.effector * effector_loss(src.local_pos, src_off, pos_b, tgt_off)
+    if w.contact > 0.0:
+        terms["contact"] = w.contact * contact_loss(src.local_pos, src_off, pos_b, tgt_off)
+    if w.bone > 0.0:
+        terms["bone"] = w.bone * bone_direction_loss(src.local_pos, src_off, pos_b, tgt_off)
+    world_b = global_positions(pos_b, out_b.root_pos, out_b.features.yaw)
+    if w.skate > 0.0:
+        world_src = global_positions(src.local_pos, batch.src_root_pos, src.yaw)
+        planted = foot_contacts(world_src, fps, src_off)
+        terms["skate"] = w.skate * foot_skate_loss(world_b, planted, fps, tgt_off)
+    if w.denoise > 0.0:
+        noisy_q, noisy_root = corrupt_batch(
+            batch.src_local_quats, batch.src_root_pos, skeleton_height(src_off), CorruptionRanges()
+        )
+        noisy = compute_features(noisy_q, noisy_root, src_off)
+        out_n = model.retarget_features(noisy, noisy_root[:, 0], src_off, tgt_off)
+        world_n = global_positions(out_n.features.local_pos, out_n.root_pos, out_n.features.yaw)
+        terms["denoise"] = w.denoise * denoising_loss(world_n, world_b.detach(), tgt_off)
+    return terms
+
+
 def tdcn_training_step(
     model: TDCN,
     disc: PatchDiscriminator,
     batch: RetargetBatch,
     optimizers: Optimizers,
     weights: TDCNLossWeights | None = None,
+    fps: float = 30.0,
 ) -> dict[str, float]:
     """One generator step and one discriminator step; returns the loss terms."""
     w = weights or TDCNLossWeights()
@@ -144,7 +203,8 @@ def tdcn_training_step(
         rotation_angle(src.local_quats[..., 0, :]),
         reduction="none",
     ).mean(-1)
-    total = (cycle + twist + height + adversarial + reg + orient).mean()
+    extra = metric_losses(model, batch, src, out_b, w, fps)
+    total = (cycle + twist + height + adversarial + reg + orient + sum(extra.values())).mean()
     optimizers.generator.zero_grad(set_to_none=True)
     total.backward()  # type: ignore[no-untyped-call]
     nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
@@ -159,6 +219,7 @@ def tdcn_training_step(
         "adversarial": _masked_mean(lsgan, ~same),
         "regularization": float(torch.as_tensor(reg).detach().mean()),
         "orientation": float(orient.detach().mean()),
+        **{name: float(term.detach().mean()) for name, term in extra.items()},
     }
     other = ~same
     d_opt = optimizers.discriminator

@@ -428,7 +428,7 @@ def training_step(
         return pmnet_training_step(model, disc, batch, optimizers, w_pm)
     if isinstance(model, TDCN) and isinstance(disc, PatchDiscriminator):
         w_tdcn = loss_weights(TDCNLossWeights(), weights)
-        return tdcn_training_step(model, disc, batch, optimizers, w_tdcn)
+        return tdcn_training_step(model, disc, batch, optimizers, w_tdcn, fps=fps)
     raise ValueError(
         f"no training step for model {type(model).__name__} with discriminator "
         f"{type(disc).__name__}; trainable pairs: NKN + NKNDiscriminator, PMnet + "

@@ -92,3 +92,19 @@ def test_height_loss_is_zero_for_the_same_motion_at_any_size() -> None:
     other_q, other_root = random_motion(2, 30, seed=2)
     b = compute_features(other_q, other_root, offsets)
     assert (height_loss(a, h, b, h, 5.0) > 1e-4).all()
+
+
+def test_metric_losses_join_the_paper_objective_only_when_weighted() -> None:
+    from robot_retarget.nn.models.registry import build_discriminator
+    from robot_retarget.nn.models.training import make_optimizers, training_step
+    from tests.nn.models.conftest import make_batch
+
+    batch = make_batch(frames=40)
+    for weights, extra in (({}, set()), ({"bone": 3.0, "denoise": 3.0}, {"bone", "denoise"})):
+        torch.manual_seed(0)
+        model = build_model("tdcn", channels=8, blocks=2)
+        disc = build_discriminator("tdcn", channels=8, dilations=(1, 2))
+        losses = training_step(model, disc, batch, make_optimizers(model, disc), weights=weights)
+        assert extra <= set(losses)
+        assert not ({"effector", "contact", "skate", "bone", "denoise"} - extra) & set(losses)
+        assert all(torch.isfinite(torch.tensor(v)) for v in losses.values())
