@@ -127,3 +127,23 @@ def test_any_finite_stream_gives_finite_unit_quaternions(raw: np.ndarray, root: 
         assert np.all(np.isfinite(q))
         assert np.all(np.isfinite(pos))
         np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
+
+
+def test_the_shipped_tdcn_runtime_is_its_checkpoint() -> None:
+    """``tdcn`` streams without torch from its .npz, and that file is the shipped .pt's."""
+    from robot_retarget.nn.inference import load_model
+    from robot_retarget.runtime.loader import load_runtime_model, runtime_of
+
+    shipped = load_runtime_model("tdcn")
+    assert isinstance(shipped, RuntimeModel)
+    assert shipped.architecture == "tdcn"
+    exported = runtime_of(load_model("tdcn"))
+    assert exported is not None
+    src = default_canonical_skeleton().offsets
+    quats, root = _clip(30, seed=5)
+    a, b = shipped.online(src, 0.4 * src), exported.online(src, 0.4 * src)
+    for t in range(len(quats)):
+        qa, ra = a.step(quats[t], root[t])
+        qb, rb = b.step(quats[t], root[t])
+        np.testing.assert_array_equal(qa, qb)
+        np.testing.assert_array_equal(ra, rb)
