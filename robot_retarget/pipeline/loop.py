@@ -36,6 +36,7 @@ from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.safety import ClipStats, SafetyLayer
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.pipeline.interpolation import FrameInterpolator
+from robot_retarget.pipeline.latency_budget import LatencyBudget
 from robot_retarget.pipeline.live_mailbox import LiveFrame, Mailbox
 from robot_retarget.pipeline.live_stats import LiveStats, StatsSnapshot
 from robot_retarget.pipeline.start_ramp import RampOutcome, RampSettings, StartRamp, toward
@@ -166,6 +167,9 @@ class ControlLoop:
         # A watcher's (stream --view) one-slot mailbox: one LiveFrame per command, never waited on.
         self.mailbox = mailbox
         self._silence_s = 0.0
+        # Per input frame: arrival → tick → sample → step → clamp → sent (stream prints it).
+        self.budget = LatencyBudget()
+        self._t_tick = self._t_clamped = self._t_sent = 0.0
 
     # ----------------------------------------------------------------------------- helpers
     def _set_mode(self, mode: Mode, now: float, why: str) -> None:
@@ -181,7 +185,9 @@ class ControlLoop:
         # As SafetyLayer.send, in two steps: the loop keeps the safe command itself, not the
         # backend's echo (rounded to servo ticks), so its state never drifts by rounding.
         safe = self.safety.clamp(JointCommand(q, stamp))
+        self._t_clamped = self.clock()
         self.safety.backend.send(safe)
+        self._t_sent = self.clock()
         self._q_cmd = np.array(safe.q, dtype=np.float64)
         self._sent_any = True
         self.stats.commands += 1
@@ -267,6 +273,7 @@ class ControlLoop:
         last_recv = start
         while True:
             now = self.clock()
+            self._t_tick = now
             self.stats.ticks += 1
             self.stats.jitter_s.append(max(0.0, now - next_tick))
             for frame in self.source.poll(now):
@@ -343,9 +350,11 @@ class ControlLoop:
         sample = interp.sample(now)
         if sample is None:
             return
+        t_sampled = self.clock()
         out = self.step(
             sample.local_quats, sample.root_pos, self.period_s, settle=self._settle_next
         )
+        t_stepped = self.clock()
         self._settle_next = False
         q = out.q
         if self.mode is Mode.RAMP_IN:
@@ -367,6 +376,14 @@ class ControlLoop:
         if sample.newest.seq != self._last_seq:
             self._last_seq = sample.newest.seq
             self.stats.latency_s.append(self.clock() - sample.newest.recv_s)
+            self.budget.add(
+                sample.newest.recv_s,
+                self._t_tick,
+                t_sampled,
+                t_stepped,
+                self._t_clamped,
+                self._t_sent,
+            )
 
     def _smooth_stop(self) -> None:
         if not self._sent_any or self._released or not self.safety.connected:
