@@ -187,6 +187,7 @@ def run(args: argparse.Namespace) -> int:
             page.close()
     print(f"frames: {result.step.frames} retargeted, {result.stats.commands} commands sent")
     print(result.stats.line())
+    print(loop.budget.report())
     print(source.stats.summary())
     print(loop.safety.report())
     print(f"solver fallbacks: {result.step.fallbacks}")
