@@ -23,8 +23,14 @@ import numpy as np
 from robot_retarget.array_types import FloatArray
 from robot_retarget.pipeline.live_mailbox import LiveFrame, Mailbox
 from robot_retarget.robot.config import RobotConfig
-from robot_retarget.viewer.dependency import require_viser
-from robot_retarget.viewer.robot_scene import MEASURED_RGB, ROBOT_RGB, StickFigure, setup_world
+from robot_retarget.viewer.robot_scene import (
+    MEASURED_RGB,
+    ROBOT_RGB,
+    StickFigure,
+    setup_world,
+    start_server,
+    stop_server,
+)
 from robot_retarget.viewer.scene import RobotFigure
 
 PUBLISH_HZ = 30.0
@@ -51,7 +57,6 @@ class LivePage:
         port: int = 8080,
         publish_hz: float = PUBLISH_HZ,
     ) -> None:
-        viser = require_viser()
         self.config = config
         self.mailbox = mailbox
         self.measure = measure
@@ -61,7 +66,7 @@ class LivePage:
         feet_z = float(self.figure.points(config.init_pose)[:, 2].min())
         self._root_pos = np.array([0.0, 0.0, -feet_z])
         standing = self.figure.segments(config.init_pose, self._root_pos)
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server = start_server(host, port)
         height = self.figure.height_m()
         setup_world(self.server, size_m=2.0, look_at=(0.0, 0.0, height / 2.0), view_m=1.5 * height)
         thickness = 0.025 * height
@@ -103,7 +108,7 @@ class LivePage:
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2.0)
-        self.server.stop()
+        stop_server(self.server)
 
     def __enter__(self) -> LivePage:
         return self

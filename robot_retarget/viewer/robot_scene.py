@@ -1,20 +1,38 @@
-"""Scene pieces shared by the recorded and the live page: world set-up and a stick figure.
+"""Pieces shared by the recorded and the live page: the server, world set-up, a stick figure.
 
-Everything here takes the viser server as an argument; callers get the server from
-:func:`robot_retarget.viewer.dependency.require_viser`, so importing this module never
+viser is imported only when :func:`start_server` runs (through
+:func:`robot_retarget.viewer.dependency.require_viser`), so importing this module never
 imports viser.
 """
 
 from __future__ import annotations
 
+import contextlib
+import sys
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.viewer.dependency import require_viser
+
 ROBOT_RGB: tuple[int, int, int] = (255, 110, 0)  # orange: the browser test looks for it
 PERFORMER_RGB: tuple[int, int, int] = (40, 110, 230)
 MEASURED_RGB: tuple[int, int, int] = (60, 170, 60)
+
+
+def start_server(host: str, port: int) -> Any:
+    """A viser server on ``host:port`` (the next free port if busy; 0: any free port). viser
+    prints a banner when it starts and a line when it stops: they go to stderr, so stdout stays
+    the program's own (``bench --json`` prints JSON lines there)."""
+    viser = require_viser()
+    with contextlib.redirect_stdout(sys.stderr):
+        return viser.ViserServer(host=host, port=port, verbose=False)
+
+
+def stop_server(server: Any) -> None:
+    with contextlib.redirect_stdout(sys.stderr):
+        server.stop()
 
 
 def setup_world(server: Any, *, size_m: float, look_at: npt.ArrayLike, view_m: float) -> None:

@@ -19,12 +19,13 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import RetargetError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.robot.config import RobotConfig
-from robot_retarget.viewer.dependency import require_viser
 from robot_retarget.viewer.robot_scene import (
     PERFORMER_RGB,
     ROBOT_RGB,
     StickFigure,
     setup_world,
+    start_server,
+    stop_server,
 )
 from robot_retarget.viewer.scene import PerformerFigure, RobotFigure
 from robot_retarget.viewer.timeline import SPEEDS, Timeline
@@ -71,7 +72,6 @@ class TrajectoryPage:
         port: int = 8080,
         autoplay: bool = True,
     ) -> None:
-        viser = require_viser()
         self.config = config
         self.trajectory = trajectory
         self.performer = performer
@@ -86,7 +86,7 @@ class TrajectoryPage:
         self._times = trajectory.times_s()
         self.timeline = Timeline(n, trajectory.fps, trajectory.t0, playing=autoplay)
 
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server = start_server(host, port)
         pts = self._segments.reshape(-1, 3)
         if performer is not None:
             pts = np.vstack([pts, performer.points.reshape(-1, 3)])
@@ -149,7 +149,7 @@ class TrajectoryPage:
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2.0)
-        self.server.stop()
+        stop_server(self.server)
 
     def __enter__(self) -> TrajectoryPage:
         return self
