@@ -49,6 +49,23 @@ class ScaleExtraMissingError(RetargetError):
         )
 
 
+class RayClusterError(RetargetError):
+    """Ray did not start, or the cluster at ``address`` could not be joined; ``reason`` is
+    Ray's own message."""
+
+    def __init__(self, address: str | None, reason: str) -> None:
+        self.address = address
+        self.reason = reason
+        if address is None:
+            text = f"a local Ray instance did not start ({reason}); run with --workers 1"
+        else:
+            text = (
+                f"cannot join the Ray cluster at {address} ({reason}); check `ray status` on its "
+                "head node, pass --ray-address auto on a cluster node, or leave --ray-address out"
+            )
+        super().__init__(text)
+
+
 def import_ray(workers: int) -> ModuleType:
     try:
         import ray
@@ -125,15 +142,18 @@ class RayClipPool:
         ray = self.ray
         t0 = time.perf_counter()
         if not ray.is_initialized():
-            if self.address is None:
-                ray.init(
-                    num_cpus=self.workers,
-                    include_dashboard=False,
-                    log_to_driver=False,
-                    logging_level="warning",
-                )
-            else:
-                ray.init(address=self.address, log_to_driver=False, logging_level="warning")
+            try:
+                if self.address is None:
+                    ray.init(
+                        num_cpus=self.workers,
+                        include_dashboard=False,
+                        log_to_driver=False,
+                        logging_level="warning",
+                    )
+                else:
+                    ray.init(address=self.address, log_to_driver=False, logging_level="warning")
+            except (ConnectionError, RuntimeError, ValueError) as exc:
+                raise RayClusterError(self.address, _first_line(exc)) from exc
             self._started_ray = True
         if not self.workers:  # one worker per CPU of the cluster joined
             self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
