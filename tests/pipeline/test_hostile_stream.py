@@ -1,5 +1,5 @@
-"""Fuzz: ≥ 10⁵ hostile frames through the live path into OP3's simulated bus, judged from the
-bytes the bus received.
+"""Fuzz: ≥ 10⁵ hostile frames (two shards of half each, own seeds) through the live path into
+OP3's simulated bus, judged from the bytes the bus received.
 
 Every datagram goes through the UDP source's own decode-and-check path (``handle_packet``), the
 control loop (simulated time, 125 Hz), the retargeting step, the safety layer and the real
@@ -37,6 +37,8 @@ from tests.pipeline.scripted import FakeClock
 TIME_LIMIT_S = 300
 FRAMES = 100_000
 TICKS = 8_000  # 64 s at 125 Hz, 12.5 datagrams per tick (floods come in bursts)
+# Run as independent shards (own seed, own start), so that pytest -n spreads them over cores.
+SHARDS = 2
 _XM430_TICKS_PER_TURN = 4096  # e-Manual: 0–4095 over 360°, 2048 at the centre
 _GOAL_POSITION = 116  # XM430 control table address, 4 bytes
 _SYNC_WRITE = 0x83
@@ -203,14 +205,16 @@ def judge(config: RobotConfig, writes: list[dict[int, int]], period_s: float) ->
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("shard", range(SHARDS))
 def test_hostile_frames_never_move_a_servo_out_of_limits_or_too_fast(
-    step: RetargetStep, op3: RobotConfig, capsys: pytest.CaptureFixture[str]
+    shard: int, step: RetargetStep, op3: RobotConfig, capsys: pytest.CaptureFixture[str]
 ) -> None:
     motion = demo_motion(fps=30.0)
-    sender = HostileSender(motion)
+    sender = HostileSender(motion, seed=7 + shard)
     source = InjectedUdp(sender, motion)
     clock = FakeClock()
-    settings = LoopSettings(duration_s=TICKS / op3.control_rate_hz)
+    ticks = TICKS // SHARDS
+    settings = LoopSettings(duration_s=ticks / op3.control_rate_hz)
     with SimulatedRobotBus(op3, op3.init_pose) as sim:
         for bus in sim.buses.values():
             bus.log.packets = collections.deque()  # keep every packet, not the last few
@@ -225,14 +229,14 @@ def test_hostile_frames_never_move_a_servo_out_of_limits_or_too_fast(
     report: Callable[[str], None] = print
     with capsys.disabled():
         report(
-            f"\nfuzz: {sent} datagrams ({dict(sender.sent)}); source accepted "
+            f"\nfuzz shard {shard}: {sent} datagrams ({dict(sender.sent)}); source accepted "
             f"{source.stats.accepted}, dropped {dict(source.stats.dropped)}; {len(writes)} goal "
             f"writes on the bus; {outside} outside the limits, {fast} over the velocity limit; "
             f"safety layer clipped {result.safety.commands_clipped} commands"
         )
-    assert sent >= FRAMES
+    assert sent >= FRAMES // SHARDS
     assert set(sender.sent) == set(HostileSender.KINDS)
-    assert len(writes) > 0.9 * TICKS  # the robot was driven the whole time
+    assert len(writes) > 0.9 * ticks  # the robot was driven the whole time
     assert outside == 0
     assert fast == 0
 
