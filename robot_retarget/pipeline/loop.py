@@ -43,6 +43,8 @@ from robot_retarget.pipeline.start_ramp import RampOutcome, RampSettings, StartR
 from robot_retarget.pipeline.step import RetargetStep, StepStats
 from robot_retarget.sources.base import MotionSource
 
+_MIN_EARLY_TICK_PERIODS = 0.25
+
 
 class Mode(str, enum.Enum):
     WAITING = "waiting"
@@ -74,6 +76,11 @@ class LoopSettings:
     report_every_s: float = 5.0
     duration_s: float | None = None
     delay_periods: float = 1.0  # playout delay, in (measured) input frame periods
+    # While tracking, a frame that arrives between ticks is retargeted at once (a tick of the
+    # shorter interval since the last one, bounded to v_max · that interval) and the schedule
+    # restarts from there, instead of waiting up to a period. Sources that cannot be waited
+    # on (replay) tick as usual.
+    wake_on_input: bool = False
 
     def __post_init__(self) -> None:
         if self.rate_hz is not None and not self.rate_hz > 0:
@@ -170,6 +177,11 @@ class ControlLoop:
         # Per input frame: arrival → tick → sample → step → clamp → sent (stream prints it).
         self.budget = LatencyBudget()
         self._t_tick = self._t_clamped = self._t_sent = 0.0
+        # The current tick's interval (the optimizer's and the safety layer's dt): the period,
+        # or less for a tick woken by input; the stamps shift back by what such ticks saved.
+        self._dt_s = self.period_s
+        self._stamp_shift_s = 0.0
+        self.early_ticks = 0
 
     # ----------------------------------------------------------------------------- helpers
     def _set_mode(self, mode: Mode, now: float, why: str) -> None:
@@ -181,7 +193,7 @@ class ControlLoop:
     def _send(self, q: FloatArray, now: float, play_t: float) -> None:
         # Stamps 1 ppb more than a period apart: the safety layer bounds each step by exactly
         # v_max · period, the optimizer's bound (see convert.py).
-        stamp = self._k * self.period_s * (1.0 + 1e-9)
+        stamp = self._k * self.period_s * (1.0 + 1e-9) + self._stamp_shift_s
         # As SafetyLayer.send, in two steps: the loop keeps the safe command itself, not the
         # backend's echo (rounded to servo ticks), so its state never drifts by rounding.
         safe = self.safety.clamp(JointCommand(q, stamp))
@@ -271,8 +283,16 @@ class ControlLoop:
         next_tick = start
         last_report = start
         last_recv = start
+        early = False
         while True:
             now = self.clock()
+            if early:  # woken by input: this tick's interval is shorter than the period
+                self._dt_s = min(self.period_s, max(now - self._t_tick, 1e-6))
+                self._stamp_shift_s -= self.period_s - self._dt_s
+                self.early_ticks += 1
+            else:
+                self._dt_s = self.period_s
+            early = False
             self._t_tick = now
             self.stats.ticks += 1
             self.stats.jitter_s.append(max(0.0, now - next_tick))
@@ -300,7 +320,19 @@ class ControlLoop:
                 self._k += missed
             wait = next_tick - self.clock()
             if wait > 0:
-                self.sleep(wait)
+                woke = None
+                if s.wake_on_input and self.mode is Mode.TRACKING:
+                    woke = self.source.wait_for_frame(wait)
+                if woke is None:
+                    self.sleep(wait)
+                elif woke:
+                    # Not closer than a quarter period to the last tick: a tiny interval
+                    # would allow only a tiny step.
+                    gap = self._t_tick + _MIN_EARLY_TICK_PERIODS * self.period_s - self.clock()
+                    if gap > 0:
+                        self.sleep(gap)
+                    early = True
+                    next_tick = self.clock()  # the schedule restarts at this tick
 
     def _tick(self, now: float, interp: FrameInterpolator, silence_s: float) -> None:
         s = self.settings
@@ -351,9 +383,7 @@ class ControlLoop:
         if sample is None:
             return
         t_sampled = self.clock()
-        out = self.step(
-            sample.local_quats, sample.root_pos, self.period_s, settle=self._settle_next
-        )
+        out = self.step(sample.local_quats, sample.root_pos, self._dt_s, settle=self._settle_next)
         t_stepped = self.clock()
         self._settle_next = False
         q = out.q

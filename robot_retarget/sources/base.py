@@ -99,6 +99,8 @@ class FrameQueue:
         self._max = max_frames
         self._lock = threading.Lock()
         self._stats = stats
+        # Set by put(), cleared by drain(): a waiting control loop wakes when a frame comes.
+        self.arrived = threading.Event()
 
     def put(self, frame: SourceFrame) -> None:
         with self._lock:
@@ -106,11 +108,13 @@ class FrameQueue:
                 self._items.popleft()
                 self._stats.drop("queue_full")
             self._items.append(frame)
+            self.arrived.set()
 
     def drain(self) -> list[SourceFrame]:
         with self._lock:
             out = list(self._items)
             self._items.clear()
+            self.arrived.clear()
         return out
 
 
@@ -217,6 +221,11 @@ class MotionSource(ABC):
     @property
     def finished(self) -> bool:
         return False
+
+    def wait_for_frame(self, timeout_s: float) -> bool | None:
+        """Block until a frame arrives (True) or ``timeout_s`` passes (False); None: this
+        source cannot be waited on (the caller sleeps instead)."""
+        return None
 
     def describe(self) -> str:
         return type(self).__name__

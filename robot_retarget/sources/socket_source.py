@@ -50,3 +50,6 @@ class SocketSource(MotionSource):
 
     def poll(self, now_s: float) -> list[SourceFrame]:
         return self._queue.drain()
+
+    def wait_for_frame(self, timeout_s: float) -> bool | None:
+        return self._queue.arrived.wait(max(0.0, timeout_s))
