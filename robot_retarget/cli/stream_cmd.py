@@ -93,6 +93,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--view-port", type=int, default=8080, help="--view: port (the next free one if busy)"
     )
     parser.add_argument("--no-browser", action="store_true", help="--view: do not open a browser")
+    parser.add_argument(
+        "--wake-on-input",
+        action="store_true",
+        help="live sources: retarget a frame as soon as it arrives instead of at the next tick "
+        "(still within every joint's velocity limit over the shorter interval)",
+    )
 
 
 def _on_sigterm(signum: int, frame: FrameType | None) -> None:
@@ -146,7 +152,10 @@ def run(args: argparse.Namespace) -> int:
     source.stats.on_warning = report  # e.g. every packet dropped as out of order
 
     settings = LoopSettings(
-        rate_hz=args.rate, duration_s=args.duration, report_every_s=args.stats_every
+        rate_hz=args.rate,
+        duration_s=args.duration,
+        report_every_s=args.stats_every,
+        wake_on_input=args.wake_on_input,
     )
     page = None
     mailbox = None
