@@ -145,6 +145,7 @@ class RayClipPool:
             try:
                 if self.address is None:
                     ray.init(
+                        address="local",  # a new instance, whatever RAY_ADDRESS or `ray start` say
                         num_cpus=self.workers,
                         include_dashboard=False,
                         log_to_driver=False,

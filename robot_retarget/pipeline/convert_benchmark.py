@@ -146,8 +146,13 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
         started_ray = not ray.is_initialized()
         t0 = time.perf_counter()
         if started_ray:  # once for every run: the pools join it, its start-up is not timed
-            ray.init(num_cpus=max(counts), include_dashboard=False, log_to_driver=False,
-                     logging_level="warning")  # fmt: skip
+            ray.init(
+                address="local",
+                num_cpus=max(counts),
+                include_dashboard=False,
+                log_to_driver=False,
+                logging_level="warning",
+            )
         ray_init_s = time.perf_counter() - t0
         runs: dict[int, list[dict[str, Any]]] = {w: [] for w in counts}
         try:

@@ -31,7 +31,13 @@ TIME_LIMIT_S = 300  # Ray's start on two loaded cores takes 10-30 s
 @pytest.fixture(scope="module")
 def ray_session() -> Iterator[Any]:
     ray = pytest.importorskip("ray", reason='Ray is the [scale] extra: pip install "ray>=2.9"')
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="warning")
+    ray.init(
+        address="local",
+        num_cpus=2,
+        include_dashboard=False,
+        log_to_driver=False,
+        logging_level="warning",
+    )
     yield ray
     ray.shutdown()
 
