@@ -92,6 +92,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--view-port", type=int, default=8080, help="--view: port (the next free one if busy)"
     )
+    parser.add_argument(
+        "--view-host",
+        default="127.0.0.1",
+        help="--view: address to serve on (0.0.0.0: watch from another machine, whose browser "
+        "then does not compete with the loop for this one's CPU; the page is read-only)",
+    )
     parser.add_argument("--no-browser", action="store_true", help="--view: do not open a browser")
     parser.add_argument(
         "--wake-on-input",
@@ -165,7 +171,13 @@ def run(args: argparse.Namespace) -> int:
         from robot_retarget.viewer.measurement import passive_measurement
 
         mailbox = Mailbox[LiveFrame]()
-        page = LivePage(config, mailbox, measure=passive_measurement(backend), port=args.view_port)
+        page = LivePage(
+            config,
+            mailbox,
+            measure=passive_measurement(backend),
+            host=args.view_host,
+            port=args.view_port,
+        )
         report(f"live view: {page.url}")
         if not args.no_browser:
             import webbrowser
