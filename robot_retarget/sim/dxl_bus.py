@@ -447,13 +447,16 @@ class SimulatedBus:
             return []
         total = 1 + sum(length + 4 for _, _, length in items)
         pkt = bytearray(p.HEADER_V2 + bytes((p.BROADCAST_ID, total & 0xFF, total >> 8, 0x55)))
+        crc = p.crc16(pkt)  # carried along: each part's CRC covers everything before it
         for k, (s, addr, length) in enumerate(items):
             if s.get("firmware_version") < s.table.fast_sync_read_min_firmware:
                 return [(items[0][0].servo_id, bytes(pkt))] if k else []
             code, data = s.read(addr, length)
-            pkt += bytes((s.status_error_v2(code), s.servo_id)) + data.ljust(length, b"\0")
-            crc = p.crc16(pkt)
-            pkt += bytes((crc & 0xFF, crc >> 8))
+            part = bytes((s.status_error_v2(code), s.servo_id)) + data.ljust(length, b"\0")
+            crc = p.crc16(part, crc)
+            crc_bytes = bytes((crc & 0xFF, crc >> 8))
+            pkt += part + crc_bytes
+            crc = p.crc16(crc_bytes, crc)
         return [(items[0][0].servo_id, bytes(pkt))]
 
     def _execute_v1(self, pkt: p.Packet) -> list[tuple[int, bytes]]:
