@@ -34,8 +34,8 @@ def test_overrides_and_defaults() -> None:
 
 def test_unknown_name_lists_choices() -> None:
     with pytest.raises(ModelLoadError, match="copy, copy-scaled, nkn, pmnet, residual") as info:
-        build_model("tdcn")
-    assert info.value.model == "tdcn"
+        build_model("no-such-model")
+    assert info.value.model == "no-such-model"
     with pytest.raises(ModelLoadError, match="model with a discriminator 'copy'"):
         build_discriminator("copy")
     with pytest.raises(ModelLoadError, match="model with a discriminator 'residual'"):
