@@ -14,6 +14,11 @@ Reproducible: batch n is a pure function of (seed, n) (WindowSampler) and the to
 is re-seeded from (seed, n) before each step, so a resumed run draws what the uninterrupted
 run would have drawn.
 
+Under ``torchrun --nproc-per-node N`` (the residual model) each rank trains on 1/N of the
+same global batch with gradients averaged before every step (robot_retarget.nn.distributed);
+rank 0 alone writes the run folder, which is the same for any N, so ``--resume`` works on
+another world size.
+
 Validation (every ``val_every`` steps) retargets fixed windows of the validation subjects onto
 the other subjects' and the robots' skeletons and reports, on the heading-free local pose:
 ``recon`` and ``cycle`` (mean squared joint error / height², × 10³), ``ee``, ``contact`` and
@@ -52,6 +57,7 @@ from robot_retarget.nn.dataset import (
     load_dataset,
     robot_skeletons,
 )
+from robot_retarget.nn.distributed import DataParallel, DataParallelError
 from robot_retarget.nn.features import compute_features, skeleton_height
 from robot_retarget.nn.losses import end_effector_weights, reconstruction_loss, squared_error
 from robot_retarget.nn.models.base import RetargetModel
@@ -297,7 +303,10 @@ def train(
         raise TrainError(
             "nothing to resume: config.json, trainer_state.pt or last.pt is missing", path=out
         )
-    device = _device(config.device)
+    dp = DataParallel.from_env(config.device)  # torchrun: this process's rank, else 1 of 1
+    if dp.active:
+        _check_data_parallel(config, dp)
+    device = _device(dp.device(config.device))
 
     dataset = load_dataset(
         config.data_dir, fps=config.fps, max_frames=config.max_frames, cache_dir=config.cache_dir
@@ -314,10 +323,12 @@ def train(
                 f"{train_set.data_hash[:12]}…; use the same --model and --data",
                 path=out,
             )
-    out.mkdir(parents=True, exist_ok=True)
-    cfg_path.write_text(
-        json.dumps({"config": config.to_json(), "data_hash": train_set.data_hash}, indent=2)
-    )
+    dp.barrier()  # every rank has checked the run folder before rank 0 writes into it
+    if dp.is_main:
+        out.mkdir(parents=True, exist_ok=True)
+        cfg_path.write_text(
+            json.dumps({"config": config.to_json(), "data_hash": train_set.data_hash}, indent=2)
+        )
 
     sampler = WindowSampler(
         train_set,
@@ -357,7 +368,9 @@ def train(
     model.to(device)
     if disc is not None:
         disc.to(device)
+    dp.broadcast(model, disc)  # one starting point on every rank
     optimizers = make_optimizers(model, disc, lr=config.lr)
+    dp.average_gradients_before_step(optimizers.generator)
     if resume:
         state = torch.load(state_path, map_location=device, weights_only=True)
         optimizers.generator.load_state_dict(state["generator_optimizer"])
@@ -370,6 +383,8 @@ def train(
     skeletons = _skeleton_set(train_set, robots)
 
     def save(path: Path, step: int, val: dict[str, float] | None) -> None:
+        if not dp.is_main:  # one copy of every file, written by rank 0
+            return
         save_checkpoint(
             path,
             model,
@@ -382,10 +397,13 @@ def train(
                 "train_subjects": list(train_set.subjects),
                 "validation_subjects": list(val_set.subjects),
                 "command": command,
+                "world_size": dp.world_size,
             },
         )
 
     def save_state(step: int) -> None:
+        if not dp.is_main:
+            return
         d_opt = optimizers.discriminator
         tmp = state_path.with_name(state_path.name + ".tmp")
         torch.save(
@@ -404,22 +422,26 @@ def train(
     running: dict[str, float] = {}
     count = 0
     step = start_step
-    with TrainLog(out) as log:
+    with TrainLog(out) if dp.is_main else _NoLog() as log:
         if not resume:
             val = validate(model, val_batches, config.fps)
             log.scalars(0, "val", val)
         for step in range(start_step + 1, config.steps + 1):
             torch.manual_seed(_seed_for(config.seed, step))
-            batch = _to(sampler.sample(step), device)
+            batch = _to(dp.shard(sampler.sample(step)), device)
             extra = {}
             if config.same_skeleton_recon > 0.0:
                 extra["same_recon"] = same_skeleton_step(
                     model, batch, optimizers.generator, config.same_skeleton_recon, config.fps
                 )
-            losses = {
-                **training_step(model, disc, batch, optimizers, config.fps, config.loss_weights),
-                **extra,
-            }
+            losses = dp.mean(  # the global batch's losses, the same on every rank
+                {
+                    **training_step(
+                        model, disc, batch, optimizers, config.fps, config.loss_weights
+                    ),
+                    **extra,
+                }
+            )
             for k, v in losses.items():
                 running[k] = running.get(k, 0.0) + v
             count += 1
@@ -442,7 +464,7 @@ def train(
                         best = val_metrics["score"]
                         save(best_path, step, val_metrics)
                 log.flush()
-                if progress is not None:
+                if progress is not None and dp.is_main:
                     progress(
                         TrainProgress(
                             step, config.steps, time.monotonic() - started, mean, val_metrics
@@ -451,9 +473,40 @@ def train(
             if step % config.checkpoint_every == 0 or step == config.steps:
                 save(last_path, step, None)
                 save_state(step)
+    dp.barrier()
     if not best_path.exists():  # no validation ran (e.g. resumed at the end): keep last
         save(best_path, step, None)
     return TrainResult(out, best_path, last_path, step, best, train_set.data_hash)
+
+
+def _check_data_parallel(config: TrainConfig, dp: DataParallel) -> None:
+    """What torchrun supports: models whose every step calls each optimiser unconditionally on
+    every rank (a step some ranks skip would stall the gradient average)."""
+    if config.model != "residual" or config.same_skeleton_recon > 0.0:
+        raise DataParallelError(
+            f"--model {config.model}"
+            + (" with --same-skeleton-recon" if config.same_skeleton_recon > 0.0 else "")
+            + " trains in one process only: its discriminator or extra update runs only when "
+            "a shard holds certain samples; use --model residual, or run without torchrun",
+            world_size=dp.world_size,
+        )
+    dp.check_batch_size(config.batch_size)
+
+
+class _NoLog:
+    """The log of ranks other than 0: rank 0 writes the one log."""
+
+    def __enter__(self) -> _NoLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def scalars(self, step: int, split: str, values: dict[str, float]) -> None:
+        return None
+
+    def flush(self) -> None:
+        return None
 
 
 def load_run(out_dir: str | Path) -> tuple[TrainConfig, str]:
