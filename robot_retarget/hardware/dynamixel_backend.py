@@ -445,6 +445,15 @@ class DynamixelBackend(JointBackend):
         self._last_q = np.asarray(q, dtype=np.float64).copy()
         return sent
 
+    def _ticks_from_rad(self, q: FloatArray) -> IntArray:
+        """ServoUnits.to_ticks for one finite (J,) vector, without its generic argument checks;
+        a joint its servo cannot reach still raises there (ServoRangeError)."""
+        u = self.units
+        ticks = np.rint((q * u.direction + u.zero_offset_rad) / u.rad_per_tick) + u.zero_tick
+        if ticks.min() < 0 or np.any(ticks > u.max_tick):
+            return u.to_ticks(q)  # raises ServoRangeError naming the joint
+        return ticks.astype(np.int64)
+
     def _rad_from_ticks(self, ticks: IntArray) -> FloatArray:
         """ServoUnits.from_ticks for one (J,) int64 vector, without its generic argument checks
         (a quarter of its cost per tick); a tick outside the model's range still raises there."""
@@ -481,7 +490,7 @@ class DynamixelBackend(JointBackend):
             raise HardwareError(f"command contains NaN/inf ({q}); nothing was sent")
         try:
             self._check_joint_limits(q)
-            ticks = self.units.to_ticks(q)  # range check before anything moves
+            ticks = self._ticks_from_rad(q)  # range check before anything moves
             if self.stage_timer is not None:
                 self.stage_timer.lap("limit_check")
             if not self._torque_on:

@@ -6,12 +6,15 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from robot_retarget.errors import ServoFaultError
+from robot_retarget.errors import ServoFaultError, ServoRangeError
 from robot_retarget.hardware.bus import DynamixelBus
 from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.servo_units import ServoUnits
 from robot_retarget.sim.dxl_bus import SimulatedBus
 
 MakeBuses = Callable[..., dict[str, DynamixelBus]]
@@ -90,3 +93,24 @@ def test_temperature_is_read_about_once_a_second_on_protocol2(
         seen = [backend.read_state().temperature[0] for _ in range(round(op3.control_rate_hz))]
     assert seen[-1] == 55
     assert 55 not in seen[:-2]  # not every tick: once per control_rate_hz reads
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.data())
+def test_tick_conversions_equal_servo_units(op3: RobotConfig, data: st.DataObject) -> None:
+    backend = DynamixelBackend(op3, {b.name: DynamixelBus("/dev/null", protocol=2.0,
+                               baud_rate=b.baud_rate) for b in op3.buses})  # fmt: skip
+    units = ServoUnits(op3)
+    q = np.array(
+        [
+            data.draw(st.floats(lo, hi))
+            for lo, hi in zip(units.lower_rad, units.upper_rad, strict=True)
+        ]
+    )
+    np.testing.assert_array_equal(backend._ticks_from_rad(q), units.to_ticks(q))
+    ticks = units.to_ticks(q)
+    np.testing.assert_array_equal(backend._rad_from_ticks(ticks), units.from_ticks(ticks))
+    bad = ticks.copy()
+    bad[0] = units.max_tick[0] + 1
+    with pytest.raises(ServoRangeError):
+        backend._rad_from_ticks(bad)
