@@ -20,7 +20,8 @@
 Optional (ours, off by default: the paper's objective alone): the project's eval metrics as
 losses (robot_retarget.nn.retarget_losses: ``effector``, ``contact``, ``bone``, ``skate``) and
 ``denoise``: a corrupted copy of the source (robot_retarget.nn.corruption) goes through the
-model and its output is pulled onto the clean pass's (detached), the ``eval`` denoising metric.
+model and its root-relative pose and root path (from its start) are pulled onto the clean
+pass's (detached), as the residual model's root-noise term.
 With the paper's objective alone nothing rewards leaving copy-scaled: the cycle is met by any
 invertible map, the height loss by scaling, and the adversarial term by real motion.
 
@@ -159,8 +160,15 @@ def metric_losses(
         )
         noisy = compute_features(noisy_q, noisy_root, src_off)
         out_n = model.retarget_features(noisy, noisy_root[:, 0], src_off, tgt_off)
-        world_n = global_positions(out_n.features.local_pos, out_n.root_pos, out_n.features.yaw)
-        terms["denoise"] = w.denoise * denoising_loss(world_n, world_b.detach(), tgt_off)
+        # Root-relative poses, and root paths each from its own start: world positions would
+        # compare two integrated paths, whose noise-driven drift grows without bound (on
+        # world positions this term reached 10⁸ within 500 steps and the pose collapsed).
+        pose = denoising_loss(out_n.features.local_pos, pos_b.detach(), tgt_off)
+        path_n = out_n.root_pos - out_n.root_pos[:, :1]
+        path_b = (out_b.root_pos - out_b.root_pos[:, :1]).detach()
+        h = skeleton_height(tgt_off)[:, None, None]
+        path = (((path_n - path_b) / h) ** 2).sum(-1).mean(-1) * 1e3
+        terms["denoise"] = w.denoise * (pose + path)
     return terms
 
 
