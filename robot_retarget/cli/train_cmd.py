@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shlex
 import sys
 from pathlib import Path
@@ -193,6 +194,8 @@ def run(args: argparse.Namespace) -> int:
 
     command = "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
     result = train(config, resume=args.resume, progress=show, command=command)
+    if os.environ.get("RANK", "0") != "0":
+        return 0  # torchrun: rank 0 exports and reports the one run
     runtime = _export_best(result.best_path)
     print(
         json.dumps(
