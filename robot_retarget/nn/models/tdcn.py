@@ -44,6 +44,7 @@ import torch
 from torch import nn
 from torch.nn import functional as nnf
 
+from robot_retarget.errors import ModelLoadError
 from robot_retarget.nn import quaternion_torch as qt
 from robot_retarget.nn.features import (
     ROOT_VEL_DIM,
@@ -261,9 +262,12 @@ class TDCN(RetargetModel):
         self, src: FrameFeatures, src_offsets: Tensor, tgt_offsets: Tensor
     ) -> tuple[Tensor, Tensor]:
         if not self.causal:
-            raise RuntimeError(
-                "this TDCN is non-causal (it needs future frames): convert clips with it, or "
-                "train one with --model-config causal=true to stream"
+            # A RetargetError, so stream and convert (which step frame by frame) say what to do.
+            raise ModelLoadError(
+                "this TDCN is non-causal (each frame needs 40 future frames) and has no online "
+                "step: score it with eval, or train one with --model-config causal=true (the "
+                "shipped tdcn is causal) to stream or convert",
+                model=self.name,
             )
         quats = src.local_quats
         tgt_in = self.offset_norm(tgt_offsets.flatten(-2))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 import torch
 
+from robot_retarget.errors import ModelLoadError
 from robot_retarget.nn import quaternion_torch as qt
 from robot_retarget.nn.features import compute_features
 from robot_retarget.nn.models.registry import build_model
@@ -63,7 +64,7 @@ def test_centred_frames_see_40_frames_each_way() -> None:
     model.reset()
     quats, root = random_motion(1, 1)
     offsets = offsets_of(default_canonical_skeleton(), 1)
-    with pytest.raises(RuntimeError, match="non-causal"):
+    with pytest.raises(ModelLoadError, match="non-causal"):
         model.step(quats[:, 0], root[:, 0], offsets, offsets)
 
 
