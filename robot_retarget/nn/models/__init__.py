@@ -1,4 +1,5 @@
-"""Retargeting models behind one interface: copy baselines, NKN, PMnet and our residual model.
+"""Retargeting models behind one interface: copy baselines, NKN, PMnet, TDCN and our residual
+model.
 
 Import the registry for names → models (``from robot_retarget.nn.models.registry import
 build_model``); this file imports nothing, so one broken model never breaks the others.
@@ -21,6 +22,11 @@ Where we deviate from (or fill gaps in) the papers, and why:
   (Shoulder…Hand, UpLeg…ToeBase, Neck…Head), trunk weight 1; F_M's convolutions are causal
   (``causal_movement=True``) so the online path has no look-ahead; the mean-point trajectory is
   taken relative to the window's first root position and heading.
+- TDCN (robot_retarget.nn.models.tdcn): the paper's layers, receptive field 81 and losses
+  (height loss, 31-frame patch discriminator, least squares); 256 channels instead of 1024
+  (the live step budget); causal by default (the paper's ablation A5) so it streams, centred
+  with ``causal=False``; rotations and root movement predicted as corrections of the source's
+  (copy-scaled at the start); every layer pads with its first / last frame.
 - Residual (ours, robot_retarget.nn.models.residual): PMnet's q_B = q_A ⊗ Δq with q_A the
   source's measured rotations (denoised by a learned causal filter) instead of a regression
   from positions, root motion as copy-scaled's through a unit-gain causal filter, trained on
