@@ -5,7 +5,8 @@
 - :mod:`~robot_retarget.runtime.loader`: a model by name or path, torch only as a fallback;
 - one step per architecture: :mod:`~robot_retarget.runtime.copy` (``copy``, ``copy-scaled``),
   :mod:`~robot_retarget.runtime.residual` (the shipped default),
-  :mod:`~robot_retarget.runtime.pmnet`;
+  :mod:`~robot_retarget.runtime.pmnet`, :mod:`~robot_retarget.runtime.tdcn` (the causal TDCN's
+  ring-buffer step, and whole clips of either TDCN);
 - :mod:`~robot_retarget.runtime.frame`: shared per-frame plumbing (quaternions, tree FK,
   heading and root velocity).
 
