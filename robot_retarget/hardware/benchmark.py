@@ -55,7 +55,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=2000, help="timed cycles per path and mode")
     parser.add_argument("--warmup", type=int, default=100, help="untimed cycles first")
     parser.add_argument(
-        "--rounds", type=int, default=10, help="the paths alternate in this many rounds"
+        "--rounds",
+        type=int,
+        default=None,
+        help="the paths alternate in this many rounds (default: every cycle, so load drifts "
+        "on a shared machine hit all paths alike)",
     )
     parser.add_argument(
         "--no-wire", action="store_true", help="only without the wire-time model (quicker)"
@@ -245,7 +249,7 @@ def _measure_mode(config: RobotConfig, ports: list[str], args: argparse.Namespac
                 k += 1
         backend.stage_timer = timer
         timer.samples.clear()
-        rounds = max(1, min(args.rounds, args.frames))
+        rounds = max(1, min(args.rounds or args.frames, args.frames))
         per_round = max(1, args.frames // rounds)
         for _ in range(rounds):
             for name, fn in runners.items():
