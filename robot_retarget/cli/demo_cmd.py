@@ -164,9 +164,13 @@ def run(args: argparse.Namespace) -> int:
     checks = {
         "streamed commands within joint and velocity limits": limits.ok,
         "offline trajectory within limits": offline.limits.ok,
-        f"stream matches offline (median max-joint error {track_err:.4f} rad)": (
-            track_err <= _TRACK_TOL_RAD
-        ),
+        (
+            f"stream matches offline (median max-joint error {track_err:.4f} rad)"
+            if errors
+            else f"stream matches offline: never compared, the played clip "
+            f"({played.duration_s:.1f} s) ended before the start ramp handed over; play more "
+            "of it (--seconds) or slower (--speed)"
+        ): (track_err <= _TRACK_TOL_RAD),
         f"ramped start: first {ramp.min_s:g} s at ≤ {ramp.fraction:.0%} of the velocity limits "
         f"(peak {ramp_peak:.0%})": bool(first) and ramp_peak <= ramp.fraction * (1 + 1e-9),
         f"servos reached the last command (error {final_err:.4f} rad)": final_err < 0.05,

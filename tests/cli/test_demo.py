@@ -54,3 +54,16 @@ def test_unwritable_out_dir_is_refused_before_work(tmp_path: Path, read_only_dir
     with pytest.raises(OutputPathError, match="is a file, not a folder"):
         demo_cmd.run(_args("--out-dir", str(tmp_path / "a_file")))
     assert list(read_only_dir.iterdir()) == []
+
+
+def test_a_clip_over_before_the_ramp_hands_over_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """1 s of played clip (4 s at 4×): the stream never joins the trajectory, so the comparison
+    cannot be made; the check says why and what to change instead of an infinite error."""
+    args = _args("--out-dir", str(tmp_path / "d"), "--seconds", "4", "--speed", "4")
+    args.no_preview = True
+    assert demo_cmd.run(args) == 1
+    text = capsys.readouterr().out
+    assert "never compared, the played clip (1.0 s) ended before the start ramp" in text
+    assert "error inf" not in text
