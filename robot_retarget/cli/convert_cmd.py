@@ -234,6 +234,8 @@ def _run_batch(args: argparse.Namespace) -> int:
     from robot_retarget.pipeline.batch_convert import clip_key, plan_batch, run_batch
     from robot_retarget.pipeline.clip_pool import LocalClipPool, RayClipPool, import_ray
     from robot_retarget.pipeline.manifest import Manifest
+    from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.runtime.loader import load_runtime_model
     from robot_retarget.sources.keypoints import is_keypoint_input
 
     workers: int | None = args.workers
@@ -249,6 +251,8 @@ def _run_batch(args: argparse.Namespace) -> int:
             "run without them"
         )
     options = _options(args)
+    load_robot_config(options.robot)  # a wrong name fails here, once, not in every worker
+    load_runtime_model(options.model)
     settings = {
         "robot": options.robot,
         "model": options.model,

@@ -50,13 +50,19 @@ class ScaleExtraMissingError(RetargetError):
 
 
 class RayClusterError(RetargetError):
-    """Ray did not start, or the cluster at ``address`` could not be joined; ``reason`` is
-    Ray's own message."""
+    """Ray did not start, the cluster at ``address`` could not be joined, or the workers did
+    not start on it (``workers_failed``); ``reason`` is Ray's own message."""
 
-    def __init__(self, address: str | None, reason: str) -> None:
+    def __init__(self, address: str | None, reason: str, *, workers_failed: bool = False) -> None:
         self.address = address
         self.reason = reason
-        if address is None:
+        self.workers_failed = workers_failed
+        if workers_failed:
+            text = (
+                f"the conversion workers did not start ({reason}); on a cluster every node needs "
+                "robot-retarget installed (the same version) and the robot configs and model"
+            )
+        elif address is None:
             text = f"a local Ray instance did not start ({reason}); run with --workers 1"
         else:
             text = (
@@ -160,7 +166,11 @@ class RayClipPool:
             self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         self._actor_class = ray.remote(num_cpus=1)(_ClipWorker)
         self._actors = [self._new_actor() for _ in range(self.workers)]
-        ray.get([a.ready.remote() for a in self._actors])  # every solver built before clip 1
+        try:
+            ray.get([a.ready.remote() for a in self._actors])  # every solver built before clip 1
+        except ray.exceptions.RayError as exc:
+            self.__exit__(None, None, None)  # no with-block exit follows a failed enter
+            raise RayClusterError(self.address, _last_line(exc), workers_failed=True) from exc
         self.startup_s = time.perf_counter() - t0
         return self
 
@@ -213,6 +223,12 @@ def _file_size(job: ClipJob) -> int:
         return job.clip.stat().st_size
     except OSError:
         return 0
+
+
+def _last_line(exc: BaseException) -> str:
+    """The cause at the end of a remote traceback."""
+    lines = [ln for ln in str(exc).splitlines() if ln.strip()]
+    return lines[-1].strip() if lines else type(exc).__name__
 
 
 def _first_line(exc: BaseException) -> str:

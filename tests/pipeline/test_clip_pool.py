@@ -152,3 +152,12 @@ def test_convert_command_on_two_workers(
     for name in CLIPS:
         npz = Path(name).with_suffix(".npz")
         assert same_trajectory(out / npz, reference / npz), name
+
+
+def test_workers_that_cannot_start_are_one_clear_error(ray_session: Any) -> None:
+    from robot_retarget.pipeline.clip_pool import RayClusterError
+
+    bad = ConvertOptions(robot="no_such_robot", model="default")
+    with pytest.raises(RayClusterError, match="no robot config named") as info, RayClipPool(bad, 1):
+        pass
+    assert info.value.workers_failed
