@@ -22,7 +22,9 @@ def test_plain_and_watched_runs_are_reported() -> None:
     records = stream_benchmark.run(_args("--seconds", "1.0", "--repeats", "1", "--view"))
     assert [r["variant"] for r in records] == ["plain", "view (ws)"]
     for r in records:
-        assert r["ticks"] > 50  # 125 Hz for 1 s, less what a busy machine overran
+        # 125 Hz for 1 s: every scheduled tick either ran or was counted as overrun.
+        assert r["ticks"] + r["overruns"] >= 120
+        assert r["ticks"] > 0
         assert r["jitter_median_ms"] >= 0.0
     watched = records[1]
     assert watched["published"] > 0  # the page drew frames while a client read them
