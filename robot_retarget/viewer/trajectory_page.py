@@ -82,18 +82,24 @@ class TrajectoryPage:
         if trajectory.root_quat is None:
             # No floating base in the file: stand the init pose's lowest point on the ground.
             root_pos = root_pos - np.array([0.0, 0.0, float(self.figure.points(q[0])[:, 2].min())])
-        self._segments = self.figure.segments(q, root_pos, trajectory.root_quat)  # (T, E, 2, 3)
+        # The pose is computed per frame drawn (~0.2 ms): a long clip's every segment at once
+        # would cost hundreds of MB.
+        self._q = q
+        self._root_pos = root_pos
+        self._root_quat = trajectory.root_quat
         self._times = trajectory.times_s()
         self.timeline = Timeline(n, trajectory.fps, trajectory.t0, playing=autoplay)
 
         self.server = start_server(host, port)
-        pts = self._segments.reshape(-1, 3)
+        # The grid covers the base's path, a robot's height around it, and the performer.
+        reach = self.figure.height_m()
+        pts = np.vstack([root_pos - reach, root_pos + reach])
         if performer is not None:
             pts = np.vstack([pts, performer.points.reshape(-1, 3)])
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         size = float(max(2.0, 2.0 * np.ceil(np.max(np.abs([lo[:2], hi[:2]])) + 0.5)))
         # Frame the first pose of both figures; the grid covers the whole path.
-        first = self._segments[0].reshape(-1, 3)
+        first = self.robot_segments(0).reshape(-1, 3)
         if performer is not None:
             first = np.vstack([first, performer.points[0]])
         f_lo, f_hi = first.min(axis=0), first.max(axis=0)
@@ -105,7 +111,7 @@ class TrajectoryPage:
         )
         thickness = 0.025 * self.figure.height_m()
         self._robot = StickFigure(
-            self.server, "/robot", self._segments[0], ROBOT_RGB, thickness_m=thickness
+            self.server, "/robot", self.robot_segments(0), ROBOT_RGB, thickness_m=thickness
         )
         self._human: StickFigure | None = None
         if performer is not None:
@@ -144,7 +150,8 @@ class TrajectoryPage:
 
     def robot_segments(self, frame: int) -> FloatArray:
         """The robot's segments (E, 2, 3) in the world at ``frame``."""
-        return np.asarray(self._segments[frame])
+        rot = None if self._root_quat is None else self._root_quat[frame]
+        return self.figure.segments(self._q[frame], self._root_pos[frame], rot)
 
     def close(self) -> None:
         self._stop.set()
@@ -248,7 +255,7 @@ class TrajectoryPage:
 
     def _draw(self, frame: int) -> None:
         with self._lock, self.server.atomic():
-            self._robot.update(self._segments[frame])
+            self._robot.update(self.robot_segments(frame))
             t = float(self._times[frame])
             if self._human is not None and self.performer is not None:
                 self._human.update(self.performer.segments(self.performer.frame_at(t)))
