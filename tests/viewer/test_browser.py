@@ -91,3 +91,31 @@ def test_page_draws_the_robot_and_follows_the_timeline(
         )
     assert first.sum() >= MIN_ROBOT_PIXELS
     assert (first ^ last).sum() >= MIN_CHANGED_PIXELS
+
+
+def test_pause_in_the_page_stops_playback(chromium: HeadlessChromium) -> None:
+    from robot_retarget.viewer.trajectory_page import TrajectoryPage
+
+    config = load_robot_config("op3")
+    trajectory = swinging_trajectory(config, frames=400)
+    with TrajectoryPage(config, trajectory, port=free_port(), autoplay=True) as page:
+        chromium.open(page.url)
+        deadline = time.monotonic() + WAIT_S  # playing: the drawing never holds still
+        while robot_mask(chromium.screenshot()).sum() < MIN_ROBOT_PIXELS:
+            if time.monotonic() > deadline:
+                pytest.fail(f"the page never showed the robot within {WAIT_S} s")
+            time.sleep(0.3)
+        assert page.timeline.playing
+        click = (
+            "(() => { const b = [...document.querySelectorAll('button')]"
+            ".find(e => e.textContent.trim() === 'Pause'); if (b) b.click(); return !!b; })()"
+        )
+        found = chromium.call("Runtime.evaluate", expression=click, returnByValue=True)
+        assert found["result"]["value"] is True
+        deadline = time.monotonic() + WAIT_S
+        while page.timeline.playing and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not page.timeline.playing
+        frame = page.timeline.frame
+        time.sleep(0.5)
+        assert page.timeline.frame == frame  # paused: the clock stands still
