@@ -17,6 +17,11 @@ from hypothesis import settings
 settings.register_profile("ci", deadline=None, derandomize=bool(os.environ.get("CI")))
 settings.load_profile("ci")
 
+# A suite started in the background by a non-interactive shell inherits SIGINT ignored, and
+# Python (with every child process it starts) keeps it so: the Ctrl-C tests need it live.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 _DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 

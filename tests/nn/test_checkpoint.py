@@ -106,13 +106,13 @@ def test_unknown_model(tmp_path: Path) -> None:
     payload = {
         "format": FORMAT,
         "version": VERSION,
-        "model": "tdcn",
+        "model": "no-such-model",
         "config": {},
         "state_dict": {},
     }
-    with pytest.raises(ModelLoadError, match="unknown model 'tdcn'") as info:
+    with pytest.raises(ModelLoadError, match="unknown model 'no-such-model'") as info:
         load_checkpoint(_save_raw(tmp_path / "u.pt", payload))
-    assert info.value.model == "tdcn"
+    assert info.value.model == "no-such-model"
 
 
 def test_weights_that_do_not_fit(tmp_path: Path) -> None:
