@@ -183,16 +183,14 @@ def run(args: argparse.Namespace) -> int:
         rate = p.elapsed_s / max(p.step, 1)
         loss = p.losses.get("total", float("nan"))
         val = f" val score {last_val['score']:.4f}" if last_val else ""
-        end = "\n" if p.validation is not None or p.step == p.total_steps else ""
-        print(
-            f"\r{_bar(p.step, p.total_steps)} {p.step}/{p.total_steps} loss {loss:.4f}{val} "
-            f"({p.elapsed_s:.0f} s, {rate * 1e3:.0f} ms/step)",
-            end=end,
-            file=sys.stderr,
-            flush=True,
+        _progress_line(
+            p.step,
+            p.total_steps,
+            f"loss {loss:.4f}{val} ({p.elapsed_s:.0f} s, {rate * 1e3:.0f} ms/step)",
+            last=p.validation is not None,
         )
 
-    command = "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
+    command = _command_line()
     result = train(config, resume=args.resume, progress=show, command=command)
     if os.environ.get("RANK", "0") != "0":
         return 0  # torchrun: rank 0 exports and reports the one run
@@ -225,6 +223,18 @@ def _export_best(best: Path) -> Path | None:
         print(f"note: {best} not exported ({exc})", file=sys.stderr)
         return None
     return out
+
+
+def _progress_line(step: int, total: int, text: str, *, last: bool) -> None:
+    """The progress bar on stderr, rewritten in place; a new line after a validation and at
+    the end."""
+    end = "\n" if last or step == total else ""
+    print(f"\r{_bar(step, total)} {step}/{total} {text}", end=end, file=sys.stderr, flush=True)
+
+
+def _command_line() -> str:
+    """The command as the user can run it again (stored in the run's metadata)."""
+    return "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
 
 
 def _run_agnostic2d(args: argparse.Namespace) -> int:
@@ -273,15 +283,12 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
             if p.validation
             else ""
         )
-        end = "\n" if p.validation is not None or p.step == p.total_steps else ""
-        print(
-            f"\r{_bar(p.step, p.total_steps)} {p.step}/{p.total_steps} loss "
-            f"{p.losses['total']:.4f}{val} ({p.elapsed_s:.0f} s)",
-            end=end,
-            file=sys.stderr,
-            flush=True,
+        _progress_line(
+            p.step,
+            p.total_steps,
+            f"loss {p.losses['total']:.4f}{val} ({p.elapsed_s:.0f} s)",
+            last=p.validation is not None,
         )
 
-    command = "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
-    print(json.dumps(train_agnostic2d(config, progress=show, command=command)))
+    print(json.dumps(train_agnostic2d(config, progress=show, command=_command_line())))
     return 0
