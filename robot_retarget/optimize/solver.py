@@ -257,7 +257,15 @@ class BufferedSolver:
 
     def call(self) -> tuple[bool, int, str]:
         """Solve; (converged, iterations, casadi return status)."""
-        self._trigger()
+        try:
+            self._trigger()
+        except RuntimeError as exc:
+            # A Ctrl-C during the solve: casadi runs Python's SIGINT handler from inside the
+            # call and hands its KeyboardInterrupt back as a RuntimeError. Raise it as what it
+            # was, so the control loop's smooth stop (and anything else) sees a Ctrl-C.
+            if "KeyboardInterrupt" in str(exc):
+                raise KeyboardInterrupt from exc
+            raise
         try:
             # The buffer evaluates in memory slot 1 (slot 0 belongs to plain calls).
             stats = self.solver.stats(1)

@@ -79,3 +79,24 @@ def test_unknown_choices_are_rejected(twist_arm: RobotConfig) -> None:
         build_solver(SolverSpec(name="t", qpsol="nope", max_iter=5, jit=False), nlp)
     with pytest.raises(ValueError, match="Hessian"):
         build_solver(SolverSpec(name="t", qpsol="daqp", max_iter=5, jit=False, hessian="x"), nlp)
+
+
+def test_a_ctrl_c_inside_the_solve_is_a_keyboard_interrupt(twist_arm: RobotConfig) -> None:
+    """casadi runs Python's SIGINT handler from inside a call and returns its KeyboardInterrupt
+    as a RuntimeError (seen in a stream stopped by Ctrl-C mid-solve); the loop's smooth stop
+    catches KeyboardInterrupt, so the solver gives it back as one. Other errors stay errors."""
+    spec = SolverSpec(name="t", qpsol="daqp", max_iter=20, jit=False, hessian="exact")
+    buffered = BufferedSolver(*build_solver(spec, RobotProblem(twist_arm).build_nlp(1)))
+
+    def interrupted() -> None:
+        raise RuntimeError(".../casadi/core/function_internal.hpp:1295: KeyboardInterrupt")
+
+    def broken() -> None:
+        raise RuntimeError("Error in Function::call for 'solver': something else")
+
+    buffered._trigger = interrupted
+    with pytest.raises(KeyboardInterrupt):
+        buffered.call()
+    buffered._trigger = broken
+    with pytest.raises(RuntimeError, match="something else"):
+        buffered.call()
