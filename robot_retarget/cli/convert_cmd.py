@@ -281,14 +281,14 @@ def _run_batch(args: argparse.Namespace) -> int:
             print(f"error: {r.clip}: {r.error}", file=sys.stderr)
         bar(done, len(plan.todo))
 
-    reports: list[ClipReport] = []
-    t_all = time.perf_counter()
-    if plan.todo:
-        pool = RayClipPool(options, workers, args.ray_address) if on_ray else LocalClipPool(options)
-        with pool:
-            print(f"workers ready in {pool.startup_s:.1f} s", file=sys.stderr)
-            t_all = time.perf_counter()
-            reports = run_batch(plan, manifest, pool, report)
+    if not plan.todo:
+        print("nothing to convert: every clip is done (--force converts them all again)")
+        return 0
+    pool = RayClipPool(options, workers, args.ray_address) if on_ray else LocalClipPool(options)
+    with pool:
+        print(f"workers ready in {pool.startup_s:.1f} s", file=sys.stderr)
+        t_all = time.perf_counter()
+        reports = run_batch(plan, manifest, pool, report)
     order = {job.clip: k for k, job in enumerate(plan.todo)}
     reports.sort(key=lambda r: order[r.clip])
     print(format_summary(reports, time.perf_counter() - t_all))

@@ -135,7 +135,11 @@ def test_killed_workers_and_a_bad_clip_lose_nothing_and_a_rerun_completes(
 
 
 def test_convert_command_on_two_workers(
-    ray_session: Any, clip_dir: Path, reference: Path, tmp_path: Path
+    ray_session: Any,
+    clip_dir: Path,
+    reference: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     import argparse
     import json
@@ -152,6 +156,9 @@ def test_convert_command_on_two_workers(
     for name in CLIPS:
         npz = Path(name).with_suffix(".npz")
         assert same_trajectory(out / npz, reference / npz), name
+    capsys.readouterr()
+    assert convert_cmd.run(args) == 0  # the same command again: everything is done
+    assert "nothing to convert: every clip is done" in capsys.readouterr().out
 
 
 def test_workers_that_cannot_start_are_one_clear_error(ray_session: Any) -> None:
