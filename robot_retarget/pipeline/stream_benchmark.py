@@ -15,9 +15,7 @@ times, so a busy machine's drift hits both alike.
 from __future__ import annotations
 
 import argparse
-import os
 import select
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -28,17 +26,6 @@ from typing import Any
 import numpy as np
 
 HELP = "Live stream on the simulated bus: late frames and tick jitter, with and without --view."
-
-_CHROMIUM_FLAGS = (
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -154,10 +141,12 @@ def _start_client(kind: str, url: str, profile: Path) -> subprocess.Popen[bytes]
     if kind == "ws":
         cmd = [sys.executable, "-m", "robot_retarget.viewer.drain_client", url]
     else:
-        exe = os.environ.get("ROBOT_RETARGET_CHROMIUM") or shutil.which("chromium")
+        from robot_retarget.viewer.chromium import HEADLESS_FLAGS, find_chromium
+
+        exe = find_chromium()
         if exe is None:
             raise RetargetError("--client chromium: no chromium on the PATH (apt install chromium)")
-        cmd = [exe, *_CHROMIUM_FLAGS, f"--user-data-dir={profile}", url]
+        cmd = [exe, *HEADLESS_FLAGS, f"--user-data-dir={profile}", url]
     out = subprocess.PIPE if kind == "ws" else subprocess.DEVNULL
     return subprocess.Popen(cmd, stdout=out, stderr=subprocess.DEVNULL)
 

@@ -12,8 +12,6 @@ import base64
 import io
 import itertools
 import json
-import os
-import shutil
 import subprocess
 import time
 import urllib.request
@@ -23,27 +21,10 @@ from typing import Any
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.viewer.chromium import HEADLESS_FLAGS
 
-CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
-CHROMIUM_FLAGS = (
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--remote-debugging-port=0",
-)
+CHROMIUM_FLAGS = (*HEADLESS_FLAGS, "--remote-debugging-port=0")
 WINDOW = (1200, 800)
-
-
-def find_chromium() -> str | None:
-    explicit = os.environ.get("ROBOT_RETARGET_CHROMIUM")
-    if explicit:
-        return explicit if Path(explicit).is_file() else None
-    return next((p for p in map(shutil.which, CHROMIUM_NAMES) if p), None)
 
 
 class HeadlessChromium:

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.viewer.chromium import HeadlessChromium, find_chromium
+from robot_retarget.viewer.chromium import find_chromium
+from tests.viewer.chromium import HeadlessChromium
 
 
 @pytest.fixture
