@@ -141,9 +141,11 @@ class Scorer:
             stats.speed_violations,
         )
 
-
-def _q_and_base(run: PipelineRun) -> tuple[FloatArray, FloatArray | None]:
-    return run.q, run.root_quat
+    def score_run(
+        self, truth: HumanMotion, run: PipelineRun
+    ) -> tuple[float, float, float, int, int]:
+        """:meth:`score` of a pipeline run, on its own floating base."""
+        return self.score(truth, run.q, run.root_quat)
 
 
 def evaluate_2d(
@@ -166,7 +168,7 @@ def evaluate_2d(
     rows = report.rows
     for k, (name, path) in enumerate(clips):
         truth = load_motion(path, max_frames=max_frames)
-        rows.setdefault("3d", InputScore()).add(*scorer.score(truth, *_q_and_base(run(truth))))
+        rows.setdefault("3d", InputScore()).add(*scorer.score_run(truth, run(truth)))
         for elevation in ELEVATIONS_DEG:
             for azimuth in AZIMUTHS_DEG:
                 cam = _camera(elevation, azimuth)
@@ -174,7 +176,7 @@ def evaluate_2d(
                 seq = keypoints_of(truth, cam, rng, noise)
                 for causal, label in ((False, "2d clip"), (True, "2d stream")):
                     lifted = world_heading(lift_keypoints(seq, keypoint_model, causal=causal), cam)
-                    scores = scorer.score(truth, *_q_and_base(run(lifted)))
+                    scores = scorer.score_run(truth, run(lifted))
                     rows.setdefault(f"{label} @ {elevation:g}°", InputScore()).add(*scores)
                     rows.setdefault(label, InputScore()).add(*scores)
         if progress is not None:
