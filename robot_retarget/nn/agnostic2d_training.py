@@ -210,11 +210,12 @@ def rendered_batches(
         return
     global _LOADER_SAMPLER
     _LOADER_SAMPLER = sampler  # read by the forked processes, never pickled
-    ctx = multiprocessing.get_context("fork")
-    with ctx.Pool(workers) as pool:
-        arrays = pool.imap(_loader_sample, steps, chunksize=1)
-        yield (_to_tensors(f, t) for f, t in arrays)
-    _LOADER_SAMPLER = None
+    try:
+        with multiprocessing.get_context("fork").Pool(workers) as pool:
+            arrays = pool.imap(_loader_sample, steps, chunksize=1)
+            yield (_to_tensors(f, t) for f, t in arrays)
+    finally:
+        _LOADER_SAMPLER = None  # the sampler (and its clips) are not kept after training
 
 
 def validation_batch(
