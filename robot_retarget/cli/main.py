@@ -26,6 +26,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("doctor", "robot_retarget.cli.doctor_cmd", "Check a Dynamixel bus: ports, servos, latency."),
     ("train", "robot_retarget.cli.train_cmd", "Train a retargeting network on BVH clips."),
     ("eval", "robot_retarget.cli.eval_cmd", "Evaluate retargeting models on unseen subjects."),
+    ("crossval", "robot_retarget.cli.crossval_cmd", "Cross-validate a model over subject folds."),
     ("eval-robot", "robot_retarget.cli.eval_robot_cmd", "Score the pipeline on a robot."),
     ("bench", "robot_retarget.cli.bench_cmd", "Speed benchmarks: solve, loop, model, pipeline."),
     ("export", "robot_retarget.cli.export_cmd", "Export a checkpoint to its numpy runtime."),

@@ -64,7 +64,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--val-subjects",
         default=",".join(DEFAULT_VALIDATION_SUBJECTS),
-        help="comma-separated validation subjects, never trained on (default %(default)s)",
+        help="comma-separated validation subjects, never trained on (default %(default)s; "
+        "empty for no validation: best.pt is then the last checkpoint)",
+    )
+    parser.add_argument(
+        "--exclude-subjects",
+        default="",
+        help="comma-separated subjects left out of the data entirely, neither trained nor "
+        "validated on (a held-out test fold; crossval passes it)",
     )
     parser.add_argument(
         "--robots",
@@ -172,6 +179,7 @@ def run(args: argparse.Namespace) -> int:
             same_skeleton_recon=args.same_skeleton_recon,
             max_frames=args.max_frames,
             cache_dir=args.cache_dir,
+            exclude_subjects=tuple(s for s in args.exclude_subjects.split(",") if s),
         )
     last_val: dict[str, float] = {}
 

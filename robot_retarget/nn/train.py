@@ -25,7 +25,9 @@ the other subjects' and the robots' skeletons and reports, on the heading-free l
 ``bone_deg`` against the source (as the ``eval`` metrics, robot_retarget.nn.retarget_losses),
 ``yaw_rate`` (mean |turning-rate error| against the source, rad/s: heading drift) and
 ``score`` = ``ee`` + ``contact`` + bone direction (rad) + ``cycle`` / 100 + ``yaw_rate``, which
-picks ``best.pt``.
+picks ``best.pt``. With no validation subjects there is no validation and ``best.pt`` is the
+last checkpoint. ``exclude_subjects`` (a held-out test fold, ``crossval``) are dropped from the
+data before the split: neither trained nor validated on.
 """
 
 from __future__ import annotations
@@ -105,11 +107,13 @@ class TrainConfig:
     loss_weights: dict[str, float] = field(default_factory=dict)
     max_frames: int | None = None
     cache_dir: str | None = None
+    exclude_subjects: tuple[str, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d["validation_subjects"] = list(self.validation_subjects)
         d["robots"] = list(self.robots)
+        d["exclude_subjects"] = list(self.exclude_subjects)
         return d
 
     @classmethod
@@ -117,6 +121,7 @@ class TrainConfig:
         d = dict(d)
         d["validation_subjects"] = tuple(d["validation_subjects"])
         d["robots"] = tuple(d["robots"])
+        d["exclude_subjects"] = tuple(d.get("exclude_subjects", ()))
         return cls(**d)
 
 
@@ -311,6 +316,8 @@ def train(
     dataset = load_dataset(
         config.data_dir, fps=config.fps, max_frames=config.max_frames, cache_dir=config.cache_dir
     )
+    if config.exclude_subjects:
+        dataset = _exclude(dataset, config.exclude_subjects)
     train_set, val_set = dataset.split(config.validation_subjects)
     robots = robot_skeletons(config.robots)
     if resume:
@@ -339,17 +346,22 @@ def train(
         seed=config.seed,
     )
     # Validation: real skeletons only (other validation subjects and robots), no B = A.
-    val_sampler = WindowSampler(
-        val_set,
-        window_frames=config.window_frames,
-        batch_size=config.batch_size,
-        robot_offsets=robots,
-        augmentation=Augmentation(
-            global_scale=(1.0, 1.0), bone_scale=(1.0, 1.0), p_same=0.0, p_augment_source=0.0
-        ),
-        seed=config.seed,
-    )
-    val_batches = [_to(val_sampler.sample(i, stream=2), device) for i in range(config.val_batches)]
+    # No validation subjects: no validation, and best.pt is the last checkpoint.
+    val_batches: list[RetargetBatch] = []
+    if val_set.clips:
+        val_sampler = WindowSampler(
+            val_set,
+            window_frames=config.window_frames,
+            batch_size=config.batch_size,
+            robot_offsets=robots,
+            augmentation=Augmentation(
+                global_scale=(1.0, 1.0), bone_scale=(1.0, 1.0), p_same=0.0, p_augment_source=0.0
+            ),
+            seed=config.seed,
+        )
+        val_batches = [
+            _to(val_sampler.sample(i, stream=2), device) for i in range(config.val_batches)
+        ]
 
     torch.manual_seed(config.seed)
     model = build_model(config.model, **config.model_config)
@@ -423,7 +435,7 @@ def train(
     count = 0
     step = start_step
     with TrainLog(out) if dp.is_main else _NoLog() as log:
-        if not resume:
+        if not resume and val_batches:
             val = validate(model, val_batches, config.fps)
             log.scalars(0, "val", val)
         for step in range(start_step + 1, config.steps + 1):
@@ -451,8 +463,8 @@ def train(
                     "resume from the last checkpoint",
                     path=out,
                 )
-            val_now = step % config.val_every == 0 or step == config.steps
-            if step % config.log_every == 0 or val_now:
+            val_now = bool(val_batches) and (step % config.val_every == 0 or step == config.steps)
+            if step % config.log_every == 0 or val_now or step == config.steps:
                 mean = {k: v / count for k, v in running.items()}
                 log.scalars(step, "train", mean)
                 running, count = {}, 0
@@ -474,9 +486,21 @@ def train(
                 save(last_path, step, None)
                 save_state(step)
     dp.barrier()
-    if not best_path.exists():  # no validation ran (e.g. resumed at the end): keep last
+    if not best_path.exists() or not val_batches:  # no validation ran: best is the last
         save(best_path, step, None)
     return TrainResult(out, best_path, last_path, step, best, train_set.data_hash)
+
+
+def _exclude(dataset: MotionDataset, subjects: Sequence[str]) -> MotionDataset:
+    """``dataset`` without ``subjects`` (a held-out test fold: neither trained nor validated
+    on); raises TrainError for a subject the data does not hold."""
+    unknown = sorted(set(subjects) - set(dataset.subjects))
+    if unknown:
+        raise TrainError(
+            f"excluded subject(s) {unknown} are not in the data; subjects are "
+            f"{list(dataset.subjects)}"
+        )
+    return dataset.subset(s for s in dataset.subjects if s not in set(subjects))
 
 
 def _check_data_parallel(config: TrainConfig, dp: DataParallel) -> None:

@@ -1,0 +1,136 @@
+"""``crossval --model residual --steps N --out runs/cv``: subject-level cross-validation.
+
+Trains the model once per CV fold (on the other CV folds; the held-out test fold excluded),
+scores the final-step checkpoint and the copy baselines on the fold's clips with the ``eval``
+code, prints mean ± spread over the folds, then trains on every CV subject and scores the
+test fold (robot_retarget.evaluation.crossval; the folds: robot_retarget.evaluation.folds).
+Trainings run one after another in this process; ``--resume`` continues a stopped run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from robot_retarget.cli.data_dir import add_data_argument
+
+NAME = "crossval"
+HELP = "Subject-level cross-validation: train per fold, score unseen performers."
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    from robot_retarget.nn.dataset import DEFAULT_FPS, DEFAULT_ROBOTS, DEFAULT_WINDOW_FRAMES
+    from robot_retarget.nn.models.training import LEARNING_RATE
+
+    parser.add_argument(
+        "--model",
+        action="append",
+        required=True,
+        metavar="NAME",
+        help="network to train per fold (nkn, pmnet, residual, tdcn); repeatable; copy and "
+        "copy-scaled are always scored",
+    )
+    add_data_argument(parser)
+    parser.add_argument("--out", required=True, help="output folder, e.g. runs/cv-residual")
+    parser.add_argument("--resume", action="store_true", help="continue the run in --out")
+    parser.add_argument("--steps", type=int, required=True, help="steps of every training")
+    parser.add_argument(
+        "--robot",
+        action="append",
+        default=None,
+        help="robot whose canonical skeleton is a scoring target (repeatable; default op3)",
+    )
+    parser.add_argument(
+        "--train-robots",
+        default=",".join(DEFAULT_ROBOTS),
+        help="robots whose skeletons are training targets (train --robots; default %(default)s)",
+    )
+    parser.add_argument(
+        "--folds",
+        default=None,
+        metavar="FILE",
+        help='JSON fold plan {"test": [...], "cv": [[...], ...]} (default: the plan for the '
+        "shared ten subjects, robot_retarget.evaluation.folds)",
+    )
+    parser.add_argument("--batch-size", type=int, default=32)
+    parser.add_argument("--window", type=int, default=DEFAULT_WINDOW_FRAMES, help="frames")
+    parser.add_argument("--fps", type=float, default=DEFAULT_FPS, help="common frame rate")
+    parser.add_argument("--lr", type=float, default=LEARNING_RATE, help="Adam learning rate")
+    parser.add_argument("--seed", type=int, default=0, help="training seed")
+    parser.add_argument("--val-every", type=int, default=500, help="steps between validations")
+    parser.add_argument("--checkpoint-every", type=int, default=500)
+    parser.add_argument(
+        "--model-config",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="model constructor argument (as train --model-config; repeatable)",
+    )
+    parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
+    parser.add_argument("--eval-seed", type=int, default=0, help="seed of the denoising noise")
+    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
+    parser.add_argument("--device", default="cpu", help="training device: cpu or cuda")
+    parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
+    parser.add_argument("--json", action="store_true", help="print crossval.json's content")
+    parser.add_argument("--markdown", action="store_true", help="print Markdown tables")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def run(args: argparse.Namespace) -> int:
+    import torch
+
+    from robot_retarget.cli.train_cmd import _model_config
+    from robot_retarget.evaluation.crossval import CrossvalConfig, crossval, format_report
+    from robot_retarget.evaluation.folds import DEFAULT_FOLDS, load_folds
+    from robot_retarget.nn.train import TrainProgress
+
+    if args.threads is not None:
+        torch.set_num_threads(args.threads)
+    config = CrossvalConfig(
+        models=tuple(args.model),
+        data_dir=args.data,
+        out_dir=args.out,
+        steps=args.steps,
+        robots=tuple(r for r in (args.robot or ["op3"]) if r != "none"),
+        train_robots=tuple(r for r in args.train_robots.split(",") if r),
+        batch_size=args.batch_size,
+        window_frames=args.window,
+        fps=args.fps,
+        lr=args.lr,
+        seed=args.seed,
+        val_every=args.val_every,
+        checkpoint_every=args.checkpoint_every,
+        model_config=_model_config(args.model_config),
+        max_frames=args.max_frames,
+        eval_seed=args.eval_seed,
+        threads=args.threads,
+        folds=DEFAULT_FOLDS if args.folds is None else load_folds(args.folds),
+        cache_dir=args.cache_dir,
+        device=args.device,
+    )
+
+    def log(text: str) -> None:
+        if not args.quiet:
+            print(text, file=sys.stderr, flush=True)
+
+    def progress(fold: str, p: TrainProgress) -> None:
+        if args.quiet or (p.validation is None and p.step != p.total_steps):
+            return
+        val = "" if p.validation is None else f" val score {p.validation['score']:.4f}"
+        loss = p.losses.get("total", float("nan"))
+        print(
+            f"{fold}: step {p.step}/{p.total_steps} loss {loss:.4f}{val} ({p.elapsed_s:.0f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    report = crossval(config, resume=args.resume, log=log, progress=progress)
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        print(format_report(report, markdown=args.markdown))
+        print(
+            f"\nper-fold numbers, train commands, git commit, data hash: {args.out}/crossval.json"
+        )
+    return 0
