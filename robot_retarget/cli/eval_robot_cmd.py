@@ -96,6 +96,7 @@ def _overrides(items: list[str]) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from robot_retarget.casadi_jit import default_cache_dir
     from robot_retarget.errors import RetargetError
     from robot_retarget.evaluation.robot.plots import segment_bars, stick_strip
     from robot_retarget.evaluation.robot.report import markdown_report, report_dict
@@ -110,7 +111,6 @@ def run(args: argparse.Namespace) -> int:
     )
     from robot_retarget.evaluation.robot.segments import RobotBodyModel
     from robot_retarget.nn.dataset import DEFAULT_VALIDATION_SUBJECTS
-    from robot_retarget.optimize.solver import default_cache_dir
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.robot.loader import load_robot_config
 

@@ -1,9 +1,11 @@
 """Constrained retargeting optimizer (CasADi): rotation wishes → servo angles within limits.
 
-Only this package imports casadi. Entry point: :class:`Retargeter` — ``solve`` (online, one
-frame, warm-started) and ``solve_clip`` (offline, sliding windows solved jointly); targets come
-from :func:`targets_from_rotations` (canonical local rotations → bone directions / normals /
-end effectors in the trunk frame) or are built directly as :class:`FrameTargets`.
+casadi is imported here, by the JIT cache (:mod:`robot_retarget.casadi_jit`) and by the live
+path's compiled network steps (:mod:`robot_retarget.runtime.compiled_function`), nowhere else.
+Entry point: :class:`Retargeter` — ``solve`` (online, one frame, warm-started) and
+``solve_clip`` (offline, sliding windows solved jointly); targets come from
+:func:`targets_from_rotations` (canonical local rotations → bone directions / normals / end
+effectors in the trunk frame) or are built directly as :class:`FrameTargets`.
 
 Formulation (per frame, see :mod:`.formulation`): a sum of named cost terms (:mod:`.terms`,
 assembled by :mod:`.objective`, parameters laid out once by :mod:`.parameter_layout`) — unit

@@ -26,8 +26,6 @@ import contextlib
 import hashlib
 import logging
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,25 +34,14 @@ import casadi as ca
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.casadi_jit import (
+    default_cache_dir,
+    find_compiler,
+    jit_options,
+    save_function,
+)
 
 log = logging.getLogger(__name__)
-
-CACHE_ENV = "ROBOT_RETARGET_CACHE"
-
-
-def default_cache_dir() -> Path:
-    """``$ROBOT_RETARGET_CACHE`` or ``~/.cache/robot_retarget``."""
-    env = os.environ.get(CACHE_ENV)
-    return Path(env) if env else Path.home() / ".cache" / "robot_retarget"
-
-
-def find_compiler(name: str | None = None) -> str | None:
-    """Path of a C compiler (``name``, else gcc, else cc), or None when there is none."""
-    for candidate in (name,) if name else ("gcc", "cc"):
-        path = shutil.which(candidate)
-        if path:
-            return path
-    return None
 
 
 @dataclass(frozen=True)
@@ -138,27 +125,6 @@ def _gauss_newton_hessian(nlp: dict[str, ca.SX]) -> ca.Function:
     )
 
 
-def _jit_options(compiler: str, directory: Path, name: str) -> dict[str, Any]:
-    return {
-        "jit": True,
-        "compiler": "shell",
-        "jit_name": name,
-        "jit_temp_suffix": False,
-        "jit_cleanup": False,  # see the stray C file below
-        "jit_options": {
-            "compiler": compiler,
-            "flags": ["-O1"],  # -O2 compiles ≈ 3× longer for no measurable speed-up here
-            "verbose": False,
-            "directory": f"{directory}{os.sep}",
-            "name": name,
-            "temp_suffix": False,
-            "cleanup": False,  # the saved solver links this library: keep it
-        },
-        # The saved solver refers to the library by path: loading writes no files.
-        "jit_serialize": "link",
-    }
-
-
 def cache_key(spec: SolverSpec, nlp: dict[str, ca.SX]) -> str:
     """Hash of the exact expressions, the options and the casadi version."""
     fn = ca.Function("nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"], nlp["r"]])
@@ -192,11 +158,11 @@ def build_solver(spec: SolverSpec, nlp: dict[str, ca.SX]) -> tuple[ca.Function, 
         else:
             try:
                 cache.mkdir(parents=True, exist_ok=True)
-                jit = _jit_options(compiler, cache, lib_name)
+                jit = jit_options(compiler, cache, lib_name)
                 solver = ca.nlpsol(
                     spec.name, "sqpmethod", problem, {**opts, **jit, **_hessian(spec, nlp)}
                 )
-                _save(solver, path)
+                save_function(solver, path)
                 return solver, True
             except (RuntimeError, OSError) as exc:
                 log.warning(
@@ -216,18 +182,6 @@ def _hessian(spec: SolverSpec, nlp: dict[str, ca.SX]) -> dict[str, Any]:
     if spec.hessian == "exact":
         return {}
     raise ValueError(f"unknown Hessian {spec.hessian!r}; use 'gauss-newton' or 'exact'")
-
-
-def _save(solver: ca.Function, path: Path) -> None:
-    """Write atomically, so a concurrent reader never sees half a file."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        os.close(fd)
-        solver.save(tmp)
-        os.replace(tmp, path)
-    except (OSError, RuntimeError) as exc:  # a read-only cache only costs the next start time
-        log.warning("could not cache the compiled solver at %s: %s", path, exc)
 
 
 class BufferedSolver:

@@ -26,6 +26,8 @@ from robot_retarget.errors import SolveError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.geometry.quaternion_tables import product_table, rotation_table
 from robot_retarget.optimize.formulation import RobotProblem
+from robot_retarget.optimize.targets_graph import guard_ok, targets_function
+from robot_retarget.runtime.compiled_function import CompiledFunction
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 from robot_retarget.skeleton.tree_tables import pointer_jumps
@@ -243,10 +245,41 @@ class FrameTargetBuilder:
         self._mul = product_table()
         self._rot = rotation_table()
         self._eye = np.eye(3).ravel()
+        # The same arithmetic as one casadi call (targets_graph); __call__ takes the numpy
+        # path below only for frames the graph's guard flags (degenerate vectors).
+        self._graph = CompiledFunction(
+            targets_function(
+                parents,
+                self._rot_index.tolist(),
+                self._vectors[:, :, 0],
+                self._sums,
+                nb,
+                self._body_to_root,
+                self._hip_center if self._ee else None,
+            )
+        )
+        self._q_in = self._graph.args[0].reshape(j, 4)
+        dirs, normals, ee, trunk, self._guard = self._graph.res
+        self._outputs = (dirs.reshape(nb, 3), normals.reshape(nb, 3), ee.reshape(-1, 3))
+        self._trunk = trunk.reshape(3, 3)
 
     def __call__(self, local_quats: npt.ArrayLike) -> FrameTargets:
         """Targets of one frame of canonical local rotations (22, 4) (unit)."""
         q = check_array("local rotations", local_quats, (len(CANONICAL_JOINTS), 4))
+        self._q_in[...] = q
+        self._graph()
+        if not guard_ok(self._guard):
+            return self._numpy_call(q)
+        dirs, normals, ee = self._outputs
+        return FrameTargets(
+            directions=dirs.copy(),
+            normals=normals.copy(),
+            ee_positions=ee.copy() if self._ee else None,
+            trunk_frame=self._trunk.copy(),
+        )
+
+    def _numpy_call(self, q: FloatArray) -> FrameTargets:
+        """The targets in numpy, with the fallbacks of degenerate frames."""
         g = self._glob
         g[:-1] = q
         mul = self._mul

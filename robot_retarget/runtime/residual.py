@@ -1,12 +1,13 @@
-"""numpy twin of the residual model's online step (no torch on the live path).
+"""The residual model's online step without torch: compiled geometry and numpy dense layers.
 
 :class:`robot_retarget.nn.models.residual.ResidualRetargeter` through torch costs ~0.5 ms per
-frame, nearly all of it per-op dispatch on tensors of a few hundred numbers. The live loop has a
-fraction of a millisecond for the whole chain, so :class:`FastResidualRetargeter` copies the
-trained weights into float64 arrays once and runs the same arithmetic in numpy, step for step
-as ``RetargetModel.step``: heading removal and root velocity as ``FeatureStream``, the causal
-denoiser, forward kinematics by pointer jumping (as ``FrameKinematics``), the pose correction
-with its per-skeleton bias folded in, the root filter and the integration. Its output equals
+frame, nearly all of it per-op dispatch on tensors of a few hundred numbers, and a numpy
+transcription of it still made ~120 small calls (≈ 0.4 ms). :class:`FastResidualRetargeter`
+runs the same arithmetic as ``RetargetModel.step`` in three compiled SX stages
+(:mod:`robot_retarget.runtime.residual_graphs`: denoiser features, denoised pose and forward
+kinematics, output rotations) between which the dense layers run as numpy matrix products with
+their biases folded in (an appended constant 1), about twenty calls in all; heading removal,
+root velocity and integration as ``FeatureStream`` (:class:`FrameStream`). Its output equals
 :class:`robot_retarget.nn.inference.OnlineRetargeter`'s to float32 rounding (tested).
 """
 
@@ -18,24 +19,13 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.runtime.compiled_function import CompiledFunction
 from robot_retarget.runtime.copy import rest_height_m
-from robot_retarget.runtime.frame import (
-    NUM_JOINTS,
-    FrameStream,
-    TreeKinematics,
-    check_frame,
-    check_offsets,
-    f32_layer,
-    from_rotvec,
-    left_matrices,
-    matrices,
-    qmul,
-    rotvec,
-)
+from robot_retarget.runtime.frame import NUM_JOINTS, F32Array, FrameStream, check_offsets
+from robot_retarget.runtime.residual_graphs import residual_stages
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
 
 _J = NUM_JOINTS
-_REL_SCALE = 10.0  # as robot_retarget.nn.models.residual
 
 
 @dataclass(frozen=True)
@@ -57,108 +47,143 @@ class ResidualWeights:
     root_taps: FloatArray
 
 
+def _affine(weight: FloatArray, bias: FloatArray, *, keep_one: bool) -> FloatArray:
+    """``x ↦ W x + b`` as one matrix on ``[x; 1]``; ``keep_one`` adds the row that carries the
+    constant 1 on to the next layer (ReLU leaves it 1)."""
+    out, inp = weight.shape
+    m = np.zeros((out + keep_one, inp + 1))
+    m[:out, :inp] = weight
+    m[:out, inp] = bias
+    if keep_one:
+        m[out, inp] = 1.0
+    return m
+
+
 class FastResidualRetargeter:
-    """Online residual model on numpy: ``step`` (22, 4), (3,) → (22, 4), (3,)."""
+    """Online residual model: ``step`` (22, 4), (3,) → (22, 4), (3,)."""
 
     def __init__(
         self,
         weights: ResidualWeights,
         source_offsets: npt.ArrayLike,
         target_offsets: npt.ArrayLike,
+        *,
+        jit: bool = True,
     ) -> None:
         src = check_offsets("source_offsets", source_offsets)
         tgt = check_offsets("target_offsets", target_offsets)
-        self._src = src
-        self._kin = TreeKinematics(CANONICAL_PARENTS)
+        w = weights
+        k = w.denoiser_history
         self._stream = FrameStream()
         h_src, h_tgt = rest_height_m(src), rest_height_m(tgt)
         self._ratio = h_tgt / h_src
-        w = weights
-        self._history = w.denoiser_history
-        # The joint one-hot code's share of the denoiser's first layer is a per-joint bias.
-        (d0, e0), *self._den_rest = w.denoiser_layers
-        n_feat = 4 * self._history + 1
-        self._den_first = (d0[:, :n_feat].T.copy(), e0[None] + d0[:, n_feat:].T)
-        w0, b0 = w.correction_layers[0]
-        pose_dim = 9 * _J
-        k = 3 * _J
-        ref_a = (src.reshape(-1) / h_src - w.offset_mean) / w.offset_std
-        ref_b = (tgt.reshape(-1) / h_tgt - w.offset_mean) / w.offset_std
-        # The skeletons' share of the first layer is fixed for this pair, and the input
-        # standardisation folds into it too: W (x − μ)/σ = (W/σ) x − (W/σ) μ.
-        mean = np.concatenate([w.pose_mean, w.rot_mean])
-        std = np.concatenate([w.pose_std, w.rot_std])
-        scale = np.concatenate([np.full(3 * _J, 1.0 / h_src), np.ones(6 * _J)])
-        w_pose = w0[:, :pose_dim] / std
-        first_bias = (
-            b0
-            + w0[:, pose_dim : pose_dim + k] @ ref_a
-            + w0[:, pose_dim + k :] @ ref_b
-            - w_pose @ mean
+        features, pose, output = residual_stages(CANONICAL_PARENTS, k, jit=jit)
+        # The stages share arrays: one's result is bound as the next one's argument.
+        self._q = np.zeros((_J, 4))
+        self._past = np.zeros((_J, k, 4))
+        self._features = CompiledFunction(features, args=[self._q, self._past])
+        feats, rel, self._past_next = self._features.res
+        self._feats = feats.reshape(_J, -1)  # per joint: 4K + 1 features, then its one-hot code
+        self._den_weights = np.zeros((_J, k))
+        offsets = np.ascontiguousarray(src.reshape(-1))
+        self._pose = CompiledFunction(
+            pose, args=[self._q, rel, self._den_weights.reshape(-1), offsets]
         )
-        # The correction MLP runs in float32, as the torch model does (faster matrix products).
-        self._first = f32_layer((w_pose * scale, first_bias))
-        self._hidden = [f32_layer(layer) for layer in w.correction_layers[1:]]
-        self._to_delta = f32_layer(w.to_delta)
-        self._max_correction = w.max_correction_rad
+        q_den, pose_x = self._pose.res
+        self._pose_x = pose_x
+        self._u = np.zeros((_J, 3))
+        self._yaw_cap = np.array([0.0, w.max_correction_rad])
+        self._output = CompiledFunction(
+            output,
+            args=[q_den, self._u.reshape(-1), self._yaw_cap[:1], self._yaw_cap[1:]],
+        )
+        self._out = self._output.res[0].reshape(_J, 4)
+        self._den_layers = _denoiser_layers(w, k)
+        self._layers = _correction_layers(w, src, tgt, h_src, h_tgt)
         self._root_taps = w.root_taps
         self.reset()
 
     def reset(self) -> None:
         """Start a new sequence: the next :meth:`step` is frame 0."""
-        self._past: FloatArray | None = None
-        self._vel_past = np.zeros((len(self._root_taps) - 1, 3))
+        self._started = False
+        self._vel_past = np.zeros((len(self._root_taps), 3))  # newest first
         self._stream.reset()
-
-    def _denoise(self, q: FloatArray) -> FloatArray:
-        if self._past is None:
-            self._past = np.repeat(q[:, None], self._history, axis=1)
-        conj = q * np.array([1.0, -1.0, -1.0, -1.0])
-        # q_t⁻¹ ⊗ q_t−k for every k at once: one batched (K, 4) @ (4, 4) per joint.
-        rel = rotvec(self._past @ left_matrices(conj).transpose(0, 2, 1))  # (J, K, 3)
-        own = 2.0 * np.arctan2(np.sqrt(np.sum(q[:, 1:] ** 2, axis=-1)), np.abs(q[:, 0]))
-        feats = np.concatenate(
-            [
-                rel.reshape(_J, -1) * _REL_SCALE,
-                np.sqrt(np.sum(rel * rel, axis=-1)) * _REL_SCALE,
-                own[:, None],
-            ],
-            axis=-1,
-        )
-        w_first, b_first = self._den_first
-        x = feats @ w_first + b_first
-        for w, b in self._den_rest:
-            x = np.maximum(x, 0.0) @ w.T + b
-        correction = np.sum(x[:, :, None] * rel, axis=1)
-        out = qmul(q, from_rotvec(correction))
-        out[0] = q[0]
-        self._past = np.concatenate([q[:, None], self._past[:, :-1]], axis=1)
-        return out
-
-    def _delta(self, q: FloatArray) -> FloatArray:
-        rot = matrices(q)
-        pos = self._kin.positions(rot, self._src)
-        six = rot[:, :, :2].transpose(0, 2, 1)  # per joint: column 0, then column 1 (6D)
-        x = np.concatenate([pos.reshape(-1), six.reshape(-1)]).astype(np.float32)
-        w, b = self._first
-        x = np.maximum(w @ x + b, 0.0)
-        for w, b in self._hidden:
-            x = np.maximum(w @ x + b, 0.0)
-        w, b = self._to_delta
-        cap = self._max_correction
-        u = (w @ x + b).astype(np.float64).reshape(_J, 3)
-        return from_rotvec(cap * np.tanh(u / cap))
 
     def step(
         self, local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
     ) -> tuple[FloatArray, FloatArray]:
         """One frame: (22, 4), (3,) → target rotations (22, 4) and root position (3,)."""
-        q, root = check_frame(local_quats, root_pos)
+        q_in = np.asarray(local_quats, dtype=np.float64)
+        root = np.asarray(root_pos, dtype=np.float64)
+        if q_in.shape != (_J, 4):
+            raise ValueError(f"local_quats must have shape {(_J, 4)}, got {q_in.shape}")
+        if root.shape != (3,):
+            raise ValueError(f"root_pos must have shape (3,), got {root.shape}")
+        q = self._q
+        q[...] = q_in
         vel, dyaw = self._stream.push(q, root)  # q is heading-free from here
-        q_den = self._denoise(q)
-        q_b = qmul(q_den, self._delta(q_den))
-        q_b /= np.linalg.norm(q_b, axis=-1, keepdims=True)
-        window = np.concatenate([vel[None], self._vel_past], axis=0)  # newest first
-        self._vel_past = window[:-1]
-        out_pos, out_yaw = self._stream.integrate(self._root_taps @ window * self._ratio, dyaw)
-        return self._stream.apply_heading(q_b, out_yaw), out_pos
+        if not self._started:
+            self._past[...] = q[:, None]
+            self._started = True
+        self._features()
+        self._past[...] = self._past_next.reshape(self._past.shape)
+        x = self._feats
+        *hidden, last = self._den_layers
+        for m in hidden:
+            x = np.maximum(x @ m, 0.0)
+        np.matmul(x, last, out=self._den_weights)
+        self._pose()
+        h = self._pose_x.astype(np.float32)
+        *hidden32, last32 = self._layers
+        for m32 in hidden32:
+            h = np.maximum(m32 @ h, 0.0)
+        np.matmul(last32, h, out=self._u.reshape(-1))
+        window = self._vel_past
+        window[1:] = window[:-1]
+        window[0] = vel
+        out_pos, self._yaw_cap[0] = self._stream.integrate(
+            self._root_taps @ window * self._ratio, dyaw
+        )
+        self._output()
+        return self._out.copy(), out_pos
+
+
+def _denoiser_layers(w: ResidualWeights, history: int) -> list[FloatArray]:
+    """The denoiser's layers as right-multiplied matrices on rows ``[features, one-hot]``: the
+    first layer's bias joins the one-hot rows (they sum to 1) and a column carries a constant
+    1 through the hidden layers for the next biases."""
+    (d0, e0), *rest = w.denoiser_layers
+    n_feat = 4 * history + 1
+    first = np.zeros((d0.shape[1], d0.shape[0] + 1))
+    first[:, :-1] = d0.T
+    first[n_feat:, :-1] += e0
+    first[n_feat:, -1] = 1.0
+    layers = [first]
+    for i, (wi, bi) in enumerate(rest):
+        layers.append(_affine(wi, bi, keep_one=i < len(rest) - 1).T.copy())
+    return layers
+
+
+def _correction_layers(
+    w: ResidualWeights, src: FloatArray, tgt: FloatArray, h_src: float, h_tgt: float
+) -> list[F32Array]:
+    """The correction MLP as float32 matrices on ``[x; 1]`` (float32 as the torch model, and
+    its matrix–vector products are 2–4× faster than float64)."""
+    w0, b0 = w.correction_layers[0]
+    pose_dim = 9 * _J
+    k = 3 * _J
+    ref_a = (src.reshape(-1) / h_src - w.offset_mean) / w.offset_std
+    ref_b = (tgt.reshape(-1) / h_tgt - w.offset_mean) / w.offset_std
+    # The skeletons' share of the first layer is fixed for this pair, and the input
+    # standardisation folds into it too: W (x − μ)/σ = (W/σ) x − (W/σ) μ.
+    mean = np.concatenate([w.pose_mean, w.rot_mean])
+    std = np.concatenate([w.pose_std, w.rot_std])
+    scale = np.concatenate([np.full(3 * _J, 1.0 / h_src), np.ones(6 * _J)])
+    w_pose = w0[:, :pose_dim] / std
+    first_bias = (
+        b0 + w0[:, pose_dim : pose_dim + k] @ ref_a + w0[:, pose_dim + k :] @ ref_b - w_pose @ mean
+    )
+    layers = [_affine(w_pose * scale, first_bias, keep_one=True)]
+    layers += [_affine(wi, bi, keep_one=True) for wi, bi in w.correction_layers[1:]]
+    layers.append(_affine(*w.to_delta, keep_one=False))
+    return [m.astype(np.float32) for m in layers]

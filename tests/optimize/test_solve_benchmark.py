@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robot_retarget.casadi_jit import CACHE_ENV
 from robot_retarget.cli import bench_cmd
 from robot_retarget.errors import MotionFormatError
 from robot_retarget.optimize import benchmark
-from robot_retarget.optimize.solver import CACHE_ENV
 from robot_retarget.optimize.targets import ClipTargets
 
 KEYS = {"mode", "frames", "median_ms", "p99_ms", "frames_per_s"}

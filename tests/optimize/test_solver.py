@@ -7,18 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robot_retarget.casadi_jit import CACHE_ENV, default_cache_dir, find_compiler
 from robot_retarget.optimize.formulation import RobotProblem
 from robot_retarget.optimize.objective import retarget_objective
 from robot_retarget.optimize.settings import RetargetSettings
-from robot_retarget.optimize.solver import (
-    CACHE_ENV,
-    BufferedSolver,
-    SolverSpec,
-    build_solver,
-    cache_key,
-    default_cache_dir,
-    find_compiler,
-)
+from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver, cache_key
 from robot_retarget.robot.config import RobotConfig
 
 

@@ -1,0 +1,113 @@
+"""Quaternion and rotation arithmetic on CasADi SX scalars, for compiled per-frame steps.
+
+A quaternion is a 4-tuple ``(w, x, y, z)`` of SX scalars, a vector a 3-tuple, a rotation matrix
+a row-major 9-tuple. Scalars, not SX matrices: the graphs built here are flat lists of a few
+thousand scalar operations that the C compiler turns into straight-line code
+(:mod:`robot_retarget.runtime.compiled_function`), and Python tuples build them fastest. Each
+function is the SX twin of its numpy counterpart in :mod:`robot_retarget.runtime.frame`, with
+the same conventions (Hamilton product, w first, homogeneous matrix form of a unit quaternion).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import casadi as ca
+
+Quat = Sequence[ca.SX]  # (w, x, y, z)
+Vec = Sequence[ca.SX]  # (x, y, z)
+Mat = Sequence[ca.SX]  # 3×3, row-major
+
+# Below this angle sin(a/2)/a is replaced by its series 1/2 − a²/48 (exact in float64 there).
+_SMALL_ANGLE = 1e-4
+
+
+def qmul(a: Quat, b: Quat) -> Quat:
+    """Hamilton product a ⊗ b."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+def conj(q: Quat) -> Quat:
+    return (q[0], -q[1], -q[2], -q[3])
+
+
+def rotvec(q: Quat) -> Vec:
+    """Rotation vector of a unit quaternion, shortest arc (as ``frame.rotvec``)."""
+    w, x, y, z = q
+    flip = ca.if_else(w < 0.0, -1.0, 1.0)
+    vx, vy, vz = x * flip, y * flip, z * flip
+    s = ca.sqrt(vx * vx + vy * vy + vz * vz)
+    k = 2.0 * ca.atan2(s, ca.fabs(w)) / ca.fmax(s, 1e-300)
+    return (k * vx, k * vy, k * vz)
+
+
+def angle(q: Quat) -> ca.SX:
+    """Rotation angle in [0, π] of a unit quaternion: 2·atan2(|v|, |w|)."""
+    w, x, y, z = q
+    return 2.0 * ca.atan2(ca.sqrt(x * x + y * y + z * z), ca.fabs(w))
+
+
+def norm(v: Vec) -> ca.SX:
+    return ca.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+def from_rotvec(r: Vec) -> Quat:
+    """Unit quaternion of a rotation vector (as ``frame.from_rotvec``), smooth at zero."""
+    a = norm(r)
+    half_sinc = ca.if_else(
+        a < _SMALL_ANGLE, 0.5 - a * a / 48.0, ca.sin(0.5 * a) / ca.fmax(a, _SMALL_ANGLE)
+    )
+    return (ca.cos(0.5 * a), half_sinc * r[0], half_sinc * r[1], half_sinc * r[2])
+
+
+def normalize(q: Quat) -> Quat:
+    n = ca.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+
+
+def matrix(q: Quat) -> Mat:
+    """Row-major rotation matrix of a unit quaternion, homogeneous form (as ``frame.matrices``)."""
+    w, x, y, z = q
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    return (
+        ww + xx - yy - zz,
+        2.0 * (xy - wz),
+        2.0 * (xz + wy),
+        2.0 * (xy + wz),
+        ww - xx + yy - zz,
+        2.0 * (yz - wx),
+        2.0 * (xz - wy),
+        2.0 * (yz + wx),
+        ww - xx - yy + zz,
+    )
+
+
+def matmul(a: Mat, b: Mat) -> Mat:
+    return tuple(
+        a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j]
+        for i in range(3)
+        for j in range(3)
+    )
+
+
+def rotate(m: Mat, v: Vec) -> Vec:
+    return (
+        m[0] * v[0] + m[1] * v[1] + m[2] * v[2],
+        m[3] * v[0] + m[4] * v[1] + m[5] * v[2],
+        m[6] * v[0] + m[7] * v[1] + m[8] * v[2],
+    )
+
+
+def with_heading(q: Quat, yaw: ca.SX) -> Quat:
+    """The rotation about +Y by ``yaw`` composed before ``q`` (as ``FrameStream.apply_heading``)."""
+    fw, fx, fy, fz = q
+    c, s = ca.cos(0.5 * yaw), ca.sin(0.5 * yaw)
+    return (c * fw - s * fy, c * fx + s * fz, c * fy + s * fw, c * fz - s * fx)
