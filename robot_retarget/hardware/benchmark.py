@@ -12,6 +12,9 @@ shared machine hit both alike. Rows:
   sync_read / fast sync read (Protocol 2.0) or bulk read + single reads (Protocol 1.0).
 - ``backend_send+read_state``: SafetyLayer.clamp, DynamixelBackend.send and read_state, every
   bus; ``ratio`` is its median (p99) over the bus calls' with the same read instruction.
+- ``backend_sequential_buses`` (robots with several buses): the same backend reading its buses
+  one after the other instead of at once; ``parallel_vs_sequential`` on the backend row is the
+  ratio of their medians.
 - ``stage:<name>``: where the backend's cycle goes, per tick: safety clamp, limit check and
   ticks, packet build, SDK write, read (request, wait, framing, CRC), decode to a JointState.
 
@@ -242,6 +245,19 @@ def _measure_mode(config: RobotConfig, ports: list[str], args: argparse.Namespac
             f"sdk_sync_write+{_read_name(v2, f)}{suffix}": raw_cycle(f) for f in fast_variants
         }
         runners[f"backend_send+read_state{suffix}"] = backend_cycle
+        if len(paths) > 1:
+
+            def sequential_cycle() -> None:  # not in the stage rows: those are the default's
+                stages, backend.stage_timer = backend.stage_timer, None
+                backend.parallel_buses = False
+                try:
+                    backend.send(safety.clamp(JointCommand(q_at(k), k * dt)))
+                    backend.read_state()
+                finally:
+                    backend.parallel_buses = True
+                    backend.stage_timer = stages
+
+            runners[f"backend_sequential_buses{suffix}"] = sequential_cycle
         durations: dict[str, list[float]] = {name: [] for name in runners}
         for _ in range(args.warmup):
             for fn in runners.values():
@@ -284,6 +300,12 @@ def _measure_mode(config: RobotConfig, ports: list[str], args: argparse.Namespac
     rec["servos"] = config.num_joints
     rec["retries"] = sum(b.stats.retries for b in buses.values())
     records.append(rec)
+    name = f"backend_sequential_buses{suffix}"
+    if name in durations:
+        seq = _record(name, durations[name], wire_limit_ms=wire_ms[backend_fast])
+        # parallel / sequential: below 1 where reading the buses at once pays
+        rec["parallel_vs_sequential"] = rec["median_ms"] / seq["median_ms"]
+        records.append(seq)
     for stage in STAGES:
         if stage in timer.samples:
             records.append(_record(f"stage:{stage}{suffix}", timer.samples[stage]))

@@ -25,6 +25,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from types import FrameType
 from typing import Any
@@ -109,6 +110,9 @@ class _BusGroup:
     temperature_packet: bytes = b""
 
 
+_BusRead = tuple[ByteArray, ByteArray, tuple[ByteArray, ByteArray] | None]
+
+
 class DynamixelBackend(JointBackend):
     """Dynamixel robot on ``buses`` (bus name in the config → DynamixelBus, opened here).
 
@@ -116,6 +120,12 @@ class DynamixelBackend(JointBackend):
     disagree with the config, connect() writes the expected values (torque off) and reads them
     back instead of raising RegisterMismatchError; a locked Protocol 1.0 EEPROM still raises
     (EepromLockedError).
+
+    ``parallel_buses``: with several buses, each tick's state reads run at the same time, one
+    thread per extra bus (a read is mostly waiting for the servos' bytes on the wire, and the
+    serial driver releases the GIL while it waits), so a tick costs the slowest bus, not their
+    sum. Goal writes stay sequential (the driver queues them without waiting); fault checks and
+    decoding run after every bus is idle again, in bus order.
     """
 
     def __init__(
@@ -128,6 +138,7 @@ class DynamixelBackend(JointBackend):
         handle_signals: bool = True,
         sleep: Callable[[float], None] = time.sleep,
         fix_registers: bool = False,
+        parallel_buses: bool = True,
     ) -> None:
         missing = [b.name for b in config.buses if b.name not in buses]
         if missing:
@@ -205,6 +216,8 @@ class DynamixelBackend(JointBackend):
         self._last_q: FloatArray | None = None
         self._old_handlers: dict[int, Any] = {}
         self.last_packets: dict[str, bytes] = {}  # bus name → last goal Sync Write sent
+        self.parallel_buses = parallel_buses  # may be switched between ticks (bench loop)
+        self._pool: ThreadPoolExecutor | None = None
 
     # ----- per bus -----------------------------------------------------------------------------
     def _group(self, bus_name: str) -> _BusGroup:
@@ -265,8 +278,15 @@ class DynamixelBackend(JointBackend):
             self._close_buses()
 
     def _close_buses(self) -> None:
+        self._stop_workers()
         for g in self._groups:
             g.bus.close()
+
+    def _stop_workers(self) -> None:
+        """Wait for in-flight bus reads, then end the worker threads."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
 
     # ----- connect-time checks -----------------------------------------------------------------
     def _check_models(self) -> None:
@@ -564,13 +584,30 @@ class DynamixelBackend(JointBackend):
             out[sid] = g.bus.read(sid, block.address, block.size)
         return as_block(out, g.ids, block.size)
 
-    def _read_temperatures(self, g: _BusGroup) -> None:
+    def _read_bus(self, g: _BusGroup, slow: bool) -> _BusRead:
+        """One bus's bytes of this tick: the state block, and the temperatures when ``slow``.
+        Bus I/O only (it may run in a worker thread): no checks, no shared state."""
+        errors, data = self._read_group(g)
         t = g.temperature
-        if t is None:
-            return
-        errors, data = g.bus.sync_read_block(g.temperature_packet, g.ids, t.size, fast=g.fast)
-        self._check_faults(g, errors)
-        self._temperature[g.joints] = t.decode(data, "present_temperature")
+        if not slow or t is None:
+            return errors, data, None
+        return errors, data, g.bus.sync_read_block(g.temperature_packet, g.ids, t.size, fast=g.fast)
+
+    def _read_buses(self, slow: bool) -> list[_BusRead]:
+        groups = self._groups
+        if not self.parallel_buses or len(groups) < 2:
+            return [self._read_bus(g, slow) for g in groups]
+        if self._pool is None:  # made on the first read, ended when the buses close
+            self._pool = ThreadPoolExecutor(
+                len(groups) - 1, thread_name_prefix=f"{self.config.name}-bus"
+            )
+        others = [self._pool.submit(self._read_bus, g, slow) for g in groups[1:]]
+        try:
+            first = self._read_bus(groups[0], slow)
+        finally:
+            # Every bus is idle again before anything (a fault's torque-off) touches one.
+            wait(others)
+        return [first, *(f.result() for f in others)]
 
     def _read_state_raw(self) -> JointState:
         n = self.config.num_joints
@@ -580,12 +617,15 @@ class DynamixelBackend(JointBackend):
         load = np.zeros(n)
         slow = self._reads % self._temperature_every == 0
         self._reads += 1
-        for g in self._groups:
-            errors, data = self._read_group(g)
-            if slow:
-                self._read_temperatures(g)
-            if timer is not None:
-                timer.lap("read")
+        reads = self._read_buses(slow)
+        if timer is not None:
+            timer.lap("read")
+        for g, (errors, data, temperatures) in zip(self._groups, reads, strict=True):
+            if temperatures is not None and g.temperature is not None:
+                self._check_faults(g, temperatures[0])
+                self._temperature[g.joints] = g.temperature.decode(
+                    temperatures[1], "present_temperature"
+                )
             self._check_faults(g, errors)
             block, idx = g.state, g.joints
             rec = block.records(data)
@@ -620,6 +660,7 @@ class DynamixelBackend(JointBackend):
         self._old_handlers.clear()
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self._stop_workers()  # a read in flight on another bus ends first: torque-off owns them
         self.torque_off()
         self._connected = False
         self._restore_signal_handlers()

@@ -396,3 +396,47 @@ def test_fast_sync_read_is_used_when_supported(
         backend.read_state()
     sim.settle()
     assert p.INST_FAST_SYNC_READ in {raw[7] for raw in list(sim.log.packets)}
+
+
+def test_two_buses_are_read_at_once_and_equal_a_sequential_read(
+    poppy: RobotConfig, poppy_sim: dict[str, SimulatedBus], make_buses: MakeBuses
+) -> None:
+    import threading
+
+    backend = DynamixelBackend(poppy, make_buses(poppy, poppy_sim))
+    second = backend.bus(poppy.buses[1].name)
+    readers: set[str] = set()
+    read_group = backend._read_group
+
+    def spy(g):  # type: ignore[no-untyped-def]
+        if g.bus is second:
+            readers.add(threading.current_thread().name)
+        return read_group(g)
+
+    backend._read_group = spy  # type: ignore[method-assign]
+    with backend:
+        backend.send(JointCommand(poppy.init_pose, 0.0))
+        _settle(poppy_sim)
+        parallel = backend.read_state()
+        backend.parallel_buses = False
+        sequential = backend.read_state()
+        np.testing.assert_array_equal(parallel.q, sequential.q)
+        np.testing.assert_array_equal(parallel.temperature, sequential.temperature)
+        assert any(name.startswith(f"{poppy.name}-bus") for name in readers)
+        assert threading.main_thread().name in readers
+    # Disconnect ends the worker thread.
+    assert not any(t.name.startswith(f"{poppy.name}-bus") for t in threading.enumerate())
+
+
+def test_a_dead_second_bus_stops_both_buses(
+    poppy: RobotConfig, poppy_sim: dict[str, SimulatedBus], make_buses: MakeBuses
+) -> None:
+    backend = DynamixelBackend(poppy, make_buses(poppy, poppy_sim))
+    with backend:
+        backend.send(JointCommand(poppy.init_pose, 0.0))
+        poppy_sim[poppy.buses[1].name].faults.drop_replies = 10_000
+        with pytest.raises(CommunicationError):
+            backend.read_state()  # raised in the worker thread, seen here
+        _settle(poppy_sim)
+        assert not any(s.torque_on for s in poppy_sim[poppy.buses[0].name].servos.values())
+        assert not any(s.torque_on for s in poppy_sim[poppy.buses[1].name].servos.values())
