@@ -1,5 +1,5 @@
-"""The default ``--data`` of train / eval / eval-robot: $ROBOT_RETARGET_DATA/mocap when set,
-else ../shared/data/mocap next to the checkout."""
+"""The default ``--data`` of train / eval / eval-robot / crossval: $ROBOT_RETARGET_DATA/mocap
+when set, else ../shared/data/mocap next to the checkout."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from types import ModuleType
 
 import pytest
 
-from robot_retarget.cli import data_dir, eval_cmd, eval_robot_cmd, train_cmd
+from robot_retarget.cli import crossval_cmd, data_dir, eval_cmd, eval_robot_cmd, train_cmd
 
 CHECKOUT_MOCAP = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
 
@@ -17,6 +17,7 @@ COMMANDS: list[tuple[ModuleType, list[str]]] = [
     (train_cmd, ["--model", "pmnet", "--out", "runs/x"]),
     (eval_cmd, []),
     (eval_robot_cmd, []),
+    (crossval_cmd, ["--model", "residual", "--out", "runs/x", "--steps", "1"]),
 ]
 
 

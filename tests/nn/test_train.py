@@ -156,6 +156,46 @@ def test_refuses_to_overwrite_untrainable_models_and_bad_resume(
         train(dataclasses.replace(cfg, model="copy"))
 
 
+def test_excluded_subjects_are_neither_trained_nor_validated_on(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    cfg = _config(mocap_dir, tmp_path / "run", cache_dir, model="residual", steps=2)
+    result = train(dataclasses.replace(cfg, exclude_subjects=("s3",)))
+    for path in (result.last_path, result.best_path):
+        ckpt = load_checkpoint(path)
+        assert ckpt.metadata["train_subjects"] == ["s1"]
+        assert ckpt.metadata["validation_subjects"] == ["s2"]
+        assert "subject:s3" not in ckpt.skeletons
+    stored = json.loads((tmp_path / "run" / "config.json").read_text())
+    assert stored["config"]["exclude_subjects"] == ["s3"]
+    assert TrainConfig.from_json(stored["config"]).exclude_subjects == ("s3",)
+    # The hash names the data actually used: resuming on the whole folder is refused.
+    with pytest.raises(TrainError, match="cannot resume"):
+        train(dataclasses.replace(cfg, steps=3), resume=True)
+    with pytest.raises(TrainError, match=r"excluded subject\(s\) \['s9'\] are not in the data"):
+        train(dataclasses.replace(cfg, out_dir=str(tmp_path / "x"), exclude_subjects=("s9",)))
+
+
+def test_no_validation_subjects_means_no_validation_and_best_is_last(
+    mocap_dir: Path, tmp_path: Path, cache_dir: Path
+) -> None:
+    seen: list[TrainProgress] = []
+    cfg = _config(mocap_dir, tmp_path / "run", cache_dir, model="residual", steps=3)
+    cfg = dataclasses.replace(cfg, validation_subjects=(), exclude_subjects=("s3",))
+    result = train(cfg, progress=seen.append)
+    assert all(p.validation is None for p in seen)
+    assert seen[-1].step == 3
+    rows = list(csv.DictReader((tmp_path / "run" / "log.csv").open()))
+    assert rows
+    assert {r["split"] for r in rows} == {"train"}
+    best, last = load_checkpoint(result.best_path), load_checkpoint(result.last_path)
+    assert best.metadata["step"] == last.metadata["step"] == 3
+    assert best.metadata["train_subjects"] == ["s1", "s2"]
+    assert best.metadata["validation_subjects"] == []
+    for key, value in last.model.state_dict().items():
+        torch.testing.assert_close(best.model.state_dict()[key], value, rtol=0, atol=0)
+
+
 def test_validation_of_copy_is_exact_on_same_skeleton(mocap_dir: Path, cache_dir: Path) -> None:
     data = load_dataset(mocap_dir, cache_dir=cache_dir)
     batch = WindowSampler(data, window_frames=8, batch_size=4).sample(0)

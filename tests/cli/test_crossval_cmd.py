@@ -1,0 +1,81 @@
+"""``crossval`` through the command line: a plan from --folds FILE, the JSON, Markdown and
+plain outputs, and errors as one line on stderr."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from robot_retarget.cli.main import main
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "motion"
+SUBJECTS = {"a": "tiny_walk.bvh", "b": "mixamo.bvh", "c": "asf_names.bvh", "t": "crlf_tabs.bvh"}
+
+
+@pytest.fixture
+def mocap(tmp_path: Path) -> Path:
+    root = tmp_path / "mocap"
+    for subject, name in SUBJECTS.items():
+        (root / subject).mkdir(parents=True)
+        shutil.copy(FIXTURES / name, root / subject / name)
+    return root
+
+
+def _argv(mocap: Path, out: Path, *extra: str) -> list[str]:
+    plan = out.parent / "plan.json"
+    plan.write_text(json.dumps({"test": ["t"], "cv": [["a", "b"], ["c"]]}))
+    return [
+        "crossval", "--model", "residual", "--data", str(mocap), "--out", str(out),
+        "--steps", "1", "--batch-size", "4", "--window", "8", "--train-robots", "op3",
+        "--model-config", "hidden_size=16", "--model-config", "num_layers=1",
+        "--folds", str(plan), "--cache-dir", str(out.parent / "cache"), "--threads", "1",
+        *extra,
+    ]  # fmt: skip
+
+
+def test_crossval_json_then_resume_as_markdown(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cv"
+    assert main(_argv(mocap, out, "--json")) == 0
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    assert report == json.loads((out / "crossval.json").read_text())
+    assert report["folds"] == {"test": ["t"], "cv": [["a", "b"], ["c"]]}
+    assert [e["train_subjects"] for e in report["cv"]] == [["c"], ["a", "b"]]
+    assert report["test"]["train_subjects"] == ["a", "b", "c"]
+    assert "cv-1: training residual" in captured.err
+    assert "cv-1: step 1/1" in captured.err
+    assert main([*_argv(mocap, out, "--markdown"), "--resume"]) == 0
+    text = capsys.readouterr().out
+    assert "| metric | copy [2] | copy-scaled [2] | residual [2] | residual@best-val [2] |" in text
+    assert "test fold t (trained on a+b+c)" in text
+    assert "crossval.json" in text
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (("--model", "resnet"), "cannot cross-validate model(s) ['resnet']"),
+        (("--data", "MISSING"), "no such data folder"),
+    ],
+)
+def test_errors_are_one_line(
+    mocap: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    change: tuple[str, str],
+    message: str,
+) -> None:
+    argv = _argv(mocap, tmp_path / "cv")
+    option, value = change
+    argv[argv.index(option) + 1] = str(tmp_path / value) if value == "MISSING" else value
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ")
+    assert message in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "cv").exists()
