@@ -1,7 +1,8 @@
 """Constrained retargeting optimizer (CasADi): rotation wishes → servo angles within limits.
 
 casadi is imported here, by the JIT cache (:mod:`robot_retarget.casadi_jit`) and by the live
-path's compiled network steps (:mod:`robot_retarget.runtime.compiled_function`), nowhere else.
+path's compiled per-frame steps (:mod:`robot_retarget.runtime.compiled_function`: the network's
+geometry, position packets → rotations), nowhere else.
 Entry point: :class:`Retargeter` — ``solve`` (online, one frame, warm-started) and
 ``solve_clip`` (offline, sliding windows solved jointly); targets come from
 :func:`targets_from_rotations` (canonical local rotations → bone directions / normals / end

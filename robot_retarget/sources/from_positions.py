@@ -17,8 +17,10 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import quaternion as quat
+from robot_retarget.runtime.compiled_function import CompiledFunction
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton
+from robot_retarget.sources.positions_graph import positions_function
 
 _EPS = 1e-9
 _IDENTITY = np.eye(3)
@@ -88,12 +90,35 @@ class PositionsToRotations:
                 side = self._rest[left] - self._rest[right]
             self._triads[j] = (prim, (left, right))
             self._rest_frames[j] = _frame(self._rest[prim] - self._rest[j], side)
+        # The same arithmetic as one casadi call (positions_graph); solve() takes the numpy
+        # path below only where the graph's margin flags a degenerate frame.
+        self._graph = CompiledFunction(
+            positions_function(
+                CANONICAL_PARENTS,
+                self._child,
+                self._rest_dirs,
+                self._triads,
+                self._rest_frames,
+                _EPS,
+            )
+        )
+        self._p_in = self._graph.args[0].reshape(-1, 3)
+        quats, self._margin = self._graph.res
+        self._quats = quats.reshape(-1, 4)
 
     def solve(self, positions: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
         """(22, 3) global positions (m, Y up) → local rotations (22, 4) and root position (3,)."""
         p = np.asarray(positions, dtype=np.float64)
         if p.shape != (len(CANONICAL_JOINTS), 3):
             raise ValueError(f"positions must have shape (22, 3), got {p.shape}")
+        self._p_in[...] = p
+        self._graph()
+        if self._margin[0] > 0.0:
+            return self._quats.copy(), p[Joint.Hips].copy()
+        return self._numpy_solve(p)
+
+    def _numpy_solve(self, p: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The solve in numpy, with the branches of degenerate frames."""
         n = len(CANONICAL_JOINTS)
         # 3×3 matrices in the loop (cheaper than quaternion helpers on single rows), one
         # batched conversion to quaternions at the end.

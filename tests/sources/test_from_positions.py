@@ -73,3 +73,34 @@ def test_a_spine_joint_at_the_hips_still_turns_the_hips(yaw: float, rotvecs: np.
     local, root = PositionsToRotations(skeleton).solve(pos)
     again = forward_kinematics(skeleton, local[None], root[None])[0][0]
     np.testing.assert_allclose(again, pos, atol=1e-6)
+
+
+@settings(max_examples=40)
+@given(
+    arrays(np.float64, (22, 3), elements=st.floats(-3.1, 3.1)),
+    st.sampled_from([1.0, 1e-3]),
+)
+def test_the_compiled_solve_equals_the_numpy_solve(rotvecs: np.ndarray, scale: float) -> None:
+    """Wild poses, and a skeleton a thousand times smaller (bones near the ε tests)."""
+    skeleton = SKELETON if scale == 1.0 else SKELETON.scaled(scale)
+    solver = SOLVER if scale == 1.0 else PositionsToRotations(skeleton)
+    pos, _ = forward_kinematics(skeleton, quat.from_rotation_vector(rotvecs))
+    compiled, root = solver.solve(pos)
+    reference, ref_root = solver._numpy_solve(pos)
+    np.testing.assert_allclose(compiled, reference, atol=1e-9)
+    np.testing.assert_array_equal(root, ref_root)
+
+
+def test_a_folded_bone_takes_the_numpy_branches() -> None:
+    """A bone pointing exactly back along its rest direction (the shortest arc's half turn)
+    and a zero-length bone: the graph's margin hands both to the numpy path."""
+    pos = SKELETON.rest_positions()
+    arm, fore, hand = Joint.LeftArm, Joint.LeftForeArm, Joint.LeftHand
+    folded = pos.copy()
+    folded[hand] = pos[fore] - (pos[hand] - pos[fore])
+    collapsed = pos.copy()
+    collapsed[fore] = pos[arm]
+    for p in (folded, collapsed):
+        got, _ = SOLVER.solve(p)
+        np.testing.assert_allclose(got, SOLVER._numpy_solve(p)[0], atol=1e-12)
+        assert np.all(np.isfinite(got))
