@@ -1,22 +1,41 @@
-"""CasADi's JIT compile settings and on-disk cache, shared by the optimizer's solvers
-(:mod:`robot_retarget.optimize.solver`) and the live path's compiled steps
-(:mod:`robot_retarget.runtime.compiled_function`).
+"""CasADi functions for the hot paths: JIT compile and disk cache, and in-place evaluation.
 
-Functions are compiled with the system C compiler (``-O1``) into shared libraries in
-``$ROBOT_RETARGET_CACHE`` or ``~/.cache/robot_retarget``; a saved function links its library by
-path, so loading writes no files.
+- **Compile and cache.** Functions are compiled with the system C compiler (``-O1``) into
+  shared libraries in ``$ROBOT_RETARGET_CACHE`` or ``~/.cache/robot_retarget``; a saved
+  function links its library by path, so loading writes no files. The optimizer's solvers
+  (:mod:`robot_retarget.optimize.solver`) and the live path's compiled steps share this.
+- **Compiled per-frame steps.** On a few hundred numbers numpy spends its time in per-call
+  overhead, not arithmetic (a 22×4 sum costs ~2 µs, the same as a 256×256 matrix–vector
+  product). The geometric parts of the live path's per-frame steps (quaternion products,
+  logarithms, forward kinematics: :mod:`robot_retarget.geometry.symbolic_quaternion`) are
+  therefore written once as SX graphs and evaluated in one call each (:func:`compile_graph`:
+  compiled to straight-line C and cached, keyed by a hash of the serialized graph and the casadi
+  version, or interpreted where a compile per graph would not pay). Without a C compiler a graph
+  runs in casadi's virtual machine (≈ 3× slower, still one call), with a logged warning. Dense
+  layers stay in numpy, whose BLAS is faster than generated loops.
+- **In-place evaluation** (:class:`CompiledFunction`, also under the solvers' BufferedSolver):
+  ``Function.buffer()`` binds numpy arrays as arguments and results once, so a call marshals
+  nothing. Functions may share arrays (one's result bound as the next one's argument), which is
+  how a step chains its stages without copies. Graph inputs and outputs are column vectors; a
+  C-ordered numpy array of any shape with that many elements binds to one (row-major (J, 4) is
+  index 4·j + c).
 """
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 import shutil
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import casadi as ca
+import numpy as np
+
+from robot_retarget.array_types import FloatArray
 
 log = logging.getLogger(__name__)
 
@@ -69,3 +88,117 @@ def save_function(solver: ca.Function, path: Path) -> None:
         os.replace(tmp, path)
     except (OSError, RuntimeError) as exc:  # a read-only cache only costs the next start time
         log.warning("could not cache the compiled solver at %s: %s", path, exc)
+
+
+class CompiledFunction:
+    """``fn`` bound to numpy arrays: write :attr:`args`, call, read :attr:`res`.
+
+    ``args`` / ``res`` may pass arrays to bind (float64, C-contiguous, the graph's size): a
+    result array shared as another function's argument. Missing ones are allocated.
+    """
+
+    def __init__(
+        self,
+        fn: ca.Function,
+        *,
+        args: Sequence[FloatArray | None] | None = None,
+        res: Sequence[FloatArray | None] | None = None,
+    ) -> None:
+        self.function = fn
+        self.args = _bind_arrays("argument", fn, fn.n_in(), fn.nnz_in, args)
+        self.res = _bind_arrays("result", fn, fn.n_out(), fn.nnz_out, res)
+        self._buffer, self._trigger = fn.buffer()
+        # casadi's stub says set_arg(i, buffer, size); the binding takes (i, buffer).
+        buffer: Any = self._buffer
+        for i, a in enumerate(self.args):
+            buffer.set_arg(i, a.data)
+        for i, a in enumerate(self.res):
+            buffer.set_res(i, a.data)
+
+    def __call__(self) -> None:
+        self._trigger()
+
+
+def _bind_arrays(
+    kind: str,
+    fn: ca.Function,
+    count: int,
+    nnz: Any,
+    given: Sequence[FloatArray | None] | None,
+) -> list[FloatArray]:
+    if given is not None and len(given) != count:
+        raise ValueError(f"{fn.name()} has {count} {kind}s, got {len(given)} arrays")
+    out: list[FloatArray] = []
+    for i in range(count):
+        a = None if given is None else given[i]
+        if a is None:
+            out.append(np.zeros(nnz(i)))
+            continue
+        if a.dtype != np.float64 or not a.flags.c_contiguous or a.size != nnz(i):
+            raise ValueError(
+                f"{fn.name()} {kind} {i} needs a C-contiguous float64 array of {nnz(i)} "
+                f"values, got {a.dtype} {a.shape}"
+            )
+        out.append(a)
+    return out
+
+
+def compile_graph(
+    name: str,
+    inputs: Sequence[ca.SX],
+    outputs: Sequence[ca.SX],
+    *,
+    jit: bool = True,
+    cache_dir: Path | None = None,
+) -> ca.Function:
+    """The SX function ``inputs → outputs``, JIT-compiled (loaded from the cache when built
+    before) or, without a C compiler or with ``jit=False``, interpreted."""
+    fn = ca.Function(name, list(inputs), list(outputs))
+    if not jit:
+        return fn
+    cache = cache_dir or default_cache_dir()
+    path = cache / f"{name}-{_graph_key(fn)}.casadi"
+    # One load per process and file: every performer's step shares the compiled function.
+    loaded = _LOADED.get(path)
+    if loaded is None:
+        loaded = _LOADED[path] = _load_or_compile(fn, path)
+    return loaded
+
+
+_LOADED: dict[Path, ca.Function] = {}
+
+
+def _load_or_compile(fn: ca.Function, path: Path) -> ca.Function:
+    if path.is_file():
+        try:
+            return ca.Function.load(str(path))
+        except RuntimeError as exc:  # stale or truncated file: rebuild below
+            log.warning("ignoring unreadable compiled step %s: %s", path, exc)
+    compiler = find_compiler()
+    if compiler is None:
+        log.warning(
+            "no C compiler found (gcc/cc): the live step %s runs interpreted, about 3x slower; "
+            "install gcc to speed it up",
+            fn.name(),
+        )
+        return fn
+    lib_name = f"{path.stem.replace('-', '_')}_{os.getpid()}"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        opts = jit_options(compiler, path.parent, lib_name)
+        compiled = ca.Function(fn.name(), fn.sx_in(), fn.call(fn.sx_in()), opts)
+    except (RuntimeError, OSError) as exc:
+        log.warning("JIT compilation of %s failed, running it interpreted: %s", fn.name(), exc)
+        return fn
+    finally:
+        # casadi leaves the generated C file in the working directory.
+        (Path.cwd() / f"{lib_name}.c").unlink(missing_ok=True)
+    save_function(compiled, path)
+    return compiled
+
+
+def _graph_key(fn: ca.Function) -> str:
+    h = hashlib.sha256()
+    h.update(fn.serialize().encode())
+    h.update(str(ca.CasadiMeta.version()).encode())
+    return h.hexdigest()[:20]

@@ -1,8 +1,8 @@
 """Constrained retargeting optimizer (CasADi): rotation wishes → servo angles within limits.
 
-casadi is imported here, by the JIT cache (:mod:`robot_retarget.casadi_jit`) and by the live
-path's compiled per-frame steps (:mod:`robot_retarget.runtime.compiled_function`: the network's
-geometry, position packets → rotations), nowhere else.
+casadi is imported here, by :mod:`robot_retarget.casadi_jit` (JIT cache, in-place calls) and by
+the SX graphs of the live path's per-frame steps (the network's geometry, position packets →
+rotations, :mod:`robot_retarget.geometry.symbolic_quaternion`), nowhere else.
 Entry point: :class:`Retargeter` — ``solve`` (online, one frame, warm-started) and
 ``solve_clip`` (offline, sliding windows solved jointly); targets come from
 :func:`targets_from_rotations` (canonical local rotations → bone directions / normals / end

@@ -15,9 +15,9 @@ Chosen by measurement on OP3 (numbers in the package docstring):
   the serialized solver links it and is keyed by a hash of the exact expressions, options and
   casadi version. Without a working compiler the same solver runs interpreted (≈ 4× slower),
   with a logged warning.
-- Calls go through ``Function.buffer()``: arguments and results are numpy arrays bound once,
-  so a solve costs no Python marshalling. The buffer and arrays must stay referenced: they do,
-  as attributes of :class:`BufferedSolver`.
+- Calls go through ``Function.buffer()`` (:class:`robot_retarget.casadi_jit.CompiledFunction`):
+  arguments and results are numpy arrays bound once, so a solve costs no Python marshalling.
+  The buffer and arrays must stay referenced: they do, as attributes of :class:`BufferedSolver`.
 """
 
 from __future__ import annotations
@@ -26,15 +26,15 @@ import contextlib
 import hashlib
 import logging
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import casadi as ca
-import numpy as np
 
-from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import (
+    CompiledFunction,
     default_cache_dir,
     find_compiler,
     jit_options,
@@ -190,8 +190,8 @@ class BufferedSolver:
     def __init__(self, solver: ca.Function, jit_used: bool) -> None:
         self.solver = solver
         self.jit_used = jit_used
-        self.args: list[FloatArray] = [np.zeros(solver.nnz_in(i)) for i in range(solver.n_in())]
-        self.res: list[FloatArray] = [np.zeros(solver.nnz_out(i)) for i in range(solver.n_out())]
+        bound = CompiledFunction(solver)
+        self.args, self.res = bound.args, bound.res
         names_in = solver.name_in()
         names_out = solver.name_out()
         self.x0, self.p, self.lbx, self.ubx, self.lbg, self.ubg, self.lam_x0, self.lam_g0 = (
@@ -201,13 +201,7 @@ class BufferedSolver:
         self.x, self.f, self.g, self.lam_x, self.lam_g = (
             self.res[names_out.index(n)] for n in ("x", "f", "g", "lam_x", "lam_g")
         )
-        self._buffer, self._trigger = solver.buffer()
-        # casadi's stub says set_arg(i, buffer, size); the binding takes (i, buffer).
-        buffer: Any = self._buffer
-        for i, a in enumerate(self.args):
-            buffer.set_arg(i, a.data)
-        for i, a in enumerate(self.res):
-            buffer.set_res(i, a.data)
+        self._trigger: Callable[[], None] = bound
 
     def call(self) -> tuple[bool, int, str]:
         """Solve; (converged, iterations, casadi return status)."""

@@ -22,12 +22,12 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.errors import SolveError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.geometry.quaternion_tables import product_table, rotation_table
 from robot_retarget.optimize.formulation import RobotProblem
 from robot_retarget.optimize.targets_graph import guard_ok, targets_function
-from robot_retarget.runtime.compiled_function import CompiledFunction
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 from robot_retarget.skeleton.tree_tables import pointer_jumps

@@ -20,7 +20,7 @@ import casadi as ca
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.runtime import symbolic_quaternion as sq
+from robot_retarget.geometry import symbolic_quaternion as sq
 
 GUARD_EPS = 1e-9
 

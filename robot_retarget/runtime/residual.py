@@ -19,9 +19,15 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.runtime.compiled_function import CompiledFunction
+from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.runtime.copy import rest_height_m
-from robot_retarget.runtime.frame import NUM_JOINTS, F32Array, FrameStream, check_offsets
+from robot_retarget.runtime.frame import (
+    NUM_JOINTS,
+    F32Array,
+    FrameStream,
+    check_frame,
+    check_offsets,
+)
 from robot_retarget.runtime.residual_graphs import residual_stages
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
 
@@ -113,12 +119,7 @@ class FastResidualRetargeter:
         self, local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
     ) -> tuple[FloatArray, FloatArray]:
         """One frame: (22, 4), (3,) → target rotations (22, 4) and root position (3,)."""
-        q_in = np.asarray(local_quats, dtype=np.float64)
-        root = np.asarray(root_pos, dtype=np.float64)
-        if q_in.shape != (_J, 4):
-            raise ValueError(f"local_quats must have shape {(_J, 4)}, got {q_in.shape}")
-        if root.shape != (3,):
-            raise ValueError(f"root_pos must have shape (3,), got {root.shape}")
+        q_in, root = check_frame(local_quats, root_pos)
         q = self._q
         q[...] = q_in
         vel, dyaw = self._stream.push(q, root)  # q is heading-free from here

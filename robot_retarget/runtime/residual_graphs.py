@@ -23,8 +23,8 @@ from functools import lru_cache
 
 import casadi as ca
 
-from robot_retarget.runtime import symbolic_quaternion as sq
-from robot_retarget.runtime.compiled_function import compile_graph
+from robot_retarget.casadi_jit import compile_graph
+from robot_retarget.geometry import symbolic_quaternion as sq
 
 REL_SCALE = 10.0  # as robot_retarget.nn.models.residual
 

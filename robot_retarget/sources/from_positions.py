@@ -16,8 +16,8 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.runtime.compiled_function import CompiledFunction
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources.positions_graph import positions_function

@@ -20,7 +20,7 @@ import casadi as ca
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.runtime import symbolic_quaternion as sq
+from robot_retarget.geometry import symbolic_quaternion as sq
 
 _IDENTITY: sq.Mat = tuple(ca.SX(1.0 if i == j else 0.0) for i in range(3) for j in range(3))
 

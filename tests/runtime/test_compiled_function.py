@@ -10,10 +10,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from robot_retarget import casadi_jit
+from robot_retarget.casadi_jit import CompiledFunction, compile_graph
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.runtime import compiled_function, frame
-from robot_retarget.runtime import symbolic_quaternion as sq
-from robot_retarget.runtime.compiled_function import CompiledFunction, compile_graph
+from robot_retarget.geometry import symbolic_quaternion as sq
+from robot_retarget.runtime import frame
 from robot_retarget.runtime.loader import load_runtime_model
 from robot_retarget.runtime.residual import FastResidualRetargeter, ResidualWeights
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
@@ -54,7 +55,7 @@ def test_symbolic_helpers_equal_the_numpy_ones(tmp_path: Path) -> None:
 
 
 def test_compiled_and_cached_equals_interpreted(tmp_path: Path) -> None:
-    if compiled_function.find_compiler() is None:
+    if casadi_jit.find_compiler() is None:
         pytest.skip("no C compiler")
     interpreted = CompiledFunction(compile_graph("t_cache", *_graph(), jit=False))
     fn = compile_graph("t_cache", *_graph(), cache_dir=tmp_path)
@@ -74,7 +75,7 @@ def test_compiled_and_cached_equals_interpreted(tmp_path: Path) -> None:
 def test_without_a_compiler_runs_interpreted_and_says_so(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
-    monkeypatch.setattr(compiled_function, "find_compiler", lambda: None)
+    monkeypatch.setattr(casadi_jit, "find_compiler", lambda: None)
     with caplog.at_level(logging.WARNING):
         fn = compile_graph("t_nocc", *_graph(), cache_dir=tmp_path / "c")
     assert "no C compiler" in caplog.text

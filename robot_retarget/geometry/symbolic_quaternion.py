@@ -3,7 +3,7 @@
 A quaternion is a 4-tuple ``(w, x, y, z)`` of SX scalars, a vector a 3-tuple, a rotation matrix
 a row-major 9-tuple. Scalars, not SX matrices: the graphs built here are flat lists of a few
 thousand scalar operations that the C compiler turns into straight-line code
-(:mod:`robot_retarget.runtime.compiled_function`), and Python tuples build them fastest. Each
+(:func:`robot_retarget.casadi_jit.compile_graph`), and Python tuples build them fastest. Each
 function is the SX twin of its numpy counterpart in :mod:`robot_retarget.runtime.frame`, with
 the same conventions (Hamilton product, w first, homogeneous matrix form of a unit quaternion).
 """
