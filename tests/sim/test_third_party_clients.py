@@ -90,4 +90,7 @@ def test_a_lerobot_style_client_drives_the_simulated_op3_every_time() -> None:
         )  # fmt: skip
     finally:
         bus.stop()
-    assert f"PASSED {SESSIONS}/{SESSIONS}" in out.stdout, (out.stdout, out.stderr)
+    assert f"PASSED {SESSIONS}/{SESSIONS} " in out.stdout, (out.stdout, out.stderr)
+    # A timed-out reply is retried (as LeRobot does), but a simulator that keeps missing
+    # replies is still a failure.
+    assert int(out.stdout.split("RETRIES")[1]) <= SESSIONS // 10, out.stdout
