@@ -104,7 +104,8 @@ def run(args: argparse.Namespace) -> int:
     step = RetargetStep(config, model, motion.skeleton)
     step.retargeter.warm_up()
     say(
-        f"optimizer ready in {time.perf_counter() - t0:.1f} s "
+        # The first run on a machine compiles the network's stages and the solver (cached).
+        f"network and optimizer ready in {time.perf_counter() - t0:.1f} s "
         f"({'JIT-compiled' if step.retargeter.jit_used else 'interpreted: no C compiler'})"
     )
 
