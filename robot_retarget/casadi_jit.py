@@ -23,12 +23,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import logging
 import os
 import shutil
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -169,32 +170,50 @@ _LOADED: dict[Path, ca.Function] = {}
 
 
 def _load_or_compile(fn: ca.Function, path: Path) -> ca.Function:
+    compiled = load_or_jit(
+        path,
+        lambda opts: ca.Function(fn.name(), fn.sx_in(), fn.call(fn.sx_in()), opts),
+        without=f"the live step {fn.name()} runs interpreted, about 3x slower",
+    )
+    return fn if compiled is None else compiled
+
+
+def load_or_jit(
+    path: Path,
+    build: Callable[[dict[str, Any]], ca.Function],
+    *,
+    without: str,
+    compiler: str | None = None,
+) -> ca.Function | None:
+    """The function saved at ``path``, else ``build(jit options)`` compiled with ``compiler``
+    (default gcc/cc) and saved there; None, with a warning that says ``without`` (what runs
+    instead), where there is no compiler or the compile fails."""
     if path.is_file():
         try:
             return ca.Function.load(str(path))
         except RuntimeError as exc:  # stale or truncated file: rebuild below
-            log.warning("ignoring unreadable compiled step %s: %s", path, exc)
-    compiler = find_compiler()
-    if compiler is None:
+            log.warning("ignoring unreadable cache file %s: %s", path, exc)
+    cc = find_compiler(compiler)
+    if cc is None:
         log.warning(
-            "no C compiler found (gcc/cc): the live step %s runs interpreted, about 3x slower; "
-            "install gcc to speed it up",
-            fn.name(),
+            "no C compiler found (%s): %s; install gcc to speed it up",
+            compiler or "gcc/cc",
+            without,
         )
-        return fn
+        return None
     lib_name = f"{path.stem.replace('-', '_')}_{os.getpid()}"
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        opts = jit_options(compiler, path.parent, lib_name)
-        compiled = ca.Function(fn.name(), fn.sx_in(), fn.call(fn.sx_in()), opts)
+        fn = build(jit_options(cc, path.parent, lib_name))
     except (RuntimeError, OSError) as exc:
-        log.warning("JIT compilation of %s failed, running it interpreted: %s", fn.name(), exc)
-        return fn
+        log.warning("JIT compilation with %s failed (%s): %s", cc, without, exc)
+        return None
     finally:
-        # casadi leaves the generated C file in the working directory.
-        (Path.cwd() / f"{lib_name}.c").unlink(missing_ok=True)
-    save_function(compiled, path)
-    return compiled
+        # casadi 3.8 leaves the generated C file in the working directory.
+        with contextlib.suppress(OSError):
+            (Path.cwd() / f"{lib_name}.c").unlink(missing_ok=True)
+    save_function(fn, path)
+    return fn
 
 
 def _graph_key(fn: ca.Function) -> str:

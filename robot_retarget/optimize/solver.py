@@ -22,10 +22,7 @@ Chosen by measurement on OP3 (numbers in the package docstring):
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import logging
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,15 +30,7 @@ from typing import Any
 
 import casadi as ca
 
-from robot_retarget.casadi_jit import (
-    CompiledFunction,
-    default_cache_dir,
-    find_compiler,
-    jit_options,
-    save_function,
-)
-
-log = logging.getLogger(__name__)
+from robot_retarget.casadi_jit import CompiledFunction, default_cache_dir, load_or_jit
 
 
 @dataclass(frozen=True)
@@ -141,37 +130,16 @@ def build_solver(spec: SolverSpec, nlp: dict[str, ca.SX]) -> tuple[ca.Function, 
     opts = _options(spec)
     if spec.jit:
         cache = spec.cache_dir or default_cache_dir()
-        path = cache / f"{spec.name}-{cache_key(spec, nlp)}.casadi"
-        if path.is_file():
-            try:
-                return ca.Function.load(str(path)), True
-            except RuntimeError as exc:  # stale or truncated file: rebuild below
-                log.warning("ignoring unreadable solver cache %s: %s", path, exc)
-        compiler = find_compiler(spec.compiler)
-        lib_name = f"{path.stem.replace('-', '_')}_{os.getpid()}"
-        if compiler is None:
-            log.warning(
-                "no C compiler found (%s): the retargeting solver runs without JIT, about 2x "
-                "slower; install gcc to speed it up",
-                spec.compiler or "gcc/cc",
-            )
-        else:
-            try:
-                cache.mkdir(parents=True, exist_ok=True)
-                jit = jit_options(compiler, cache, lib_name)
-                solver = ca.nlpsol(
-                    spec.name, "sqpmethod", problem, {**opts, **jit, **_hessian(spec, nlp)}
-                )
-                save_function(solver, path)
-                return solver, True
-            except (RuntimeError, OSError) as exc:
-                log.warning(
-                    "JIT compilation with %s failed, running without JIT: %s", compiler, exc
-                )
-            finally:
-                # casadi 3.8 leaves the generated C file in the working directory.
-                with contextlib.suppress(OSError):
-                    (Path.cwd() / f"{lib_name}.c").unlink(missing_ok=True)
+        compiled = load_or_jit(
+            cache / f"{spec.name}-{cache_key(spec, nlp)}.casadi",
+            lambda jit: ca.nlpsol(
+                spec.name, "sqpmethod", problem, {**opts, **jit, **_hessian(spec, nlp)}
+            ),
+            without="the retargeting solver runs without JIT, about 2x slower",
+            compiler=spec.compiler,
+        )
+        if compiled is not None:
+            return compiled, True
     solver = ca.nlpsol(spec.name, "sqpmethod", problem, {**opts, **_hessian(spec, nlp)})
     return solver, False
 

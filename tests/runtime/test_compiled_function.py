@@ -75,7 +75,7 @@ def test_compiled_and_cached_equals_interpreted(tmp_path: Path) -> None:
 def test_without_a_compiler_runs_interpreted_and_says_so(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
-    monkeypatch.setattr(casadi_jit, "find_compiler", lambda: None)
+    monkeypatch.setattr(casadi_jit, "find_compiler", lambda name=None: None)
     with caplog.at_level(logging.WARNING):
         fn = compile_graph("t_nocc", *_graph(), cache_dir=tmp_path / "c")
     assert "no C compiler" in caplog.text
