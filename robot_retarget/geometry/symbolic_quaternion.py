@@ -54,8 +54,39 @@ def angle(q: Quat) -> ca.SX:
     return 2.0 * ca.atan2(ca.sqrt(x * x + y * y + z * z), ca.fabs(w))
 
 
+IDENTITY: Mat = tuple(ca.SX(1.0 if i == j else 0.0) for i in range(3) for j in range(3))
+
+
+def dot(a: Vec, b: Vec) -> ca.SX:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
 def norm(v: Vec) -> ca.SX:
     return ca.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+def sub(a: Vec, b: Vec) -> Vec:
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def cross(a: Vec, b: Vec) -> Vec:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def unit(v: Vec) -> tuple[Vec, ca.SX]:
+    """``v / |v|`` and ``|v|`` (the caller guards a zero norm)."""
+    n = norm(v)
+    return (v[0] / n, v[1] / n, v[2] / n), n
+
+
+def reject(v: Vec, u: Vec) -> Vec:
+    """``v`` without its component along the unit vector ``u``."""
+    d = dot(v, u)
+    return (v[0] - d * u[0], v[1] - d * u[1], v[2] - d * u[2])
+
+
+def transpose(m: Mat) -> Mat:
+    return (m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8])
 
 
 def from_rotvec(r: Vec) -> Quat:

@@ -41,15 +41,6 @@ def _rotation(q: sq.Quat) -> sq.Mat:
     )
 
 
-def _unit(v: sq.Vec) -> tuple[sq.Vec, ca.SX]:
-    n = sq.norm(v)
-    return (v[0] / n, v[1] / n, v[2] / n), n
-
-
-def _dot(a: sq.Vec, b: sq.Vec) -> ca.SX:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
 def _linear(m: FloatArray, v: Sequence[ca.SX]) -> list[ca.SX]:
     """``m @ v`` for a constant matrix, zero entries left out of the graph."""
     return [
@@ -89,16 +80,10 @@ def targets_function(
     summed: list[sq.Vec] = [(comps[0][i], comps[1][i], comps[2][i]) for i in range(len(sums))]
     nb = num_bones
     hip_axis, trunk = summed[nb], summed[nb + 1]
-    up, trunk_norm = _unit(trunk)
-    d = _dot(hip_axis, up)
-    left, left_norm = _unit(tuple(hip_axis[c] - d * up[c] for c in range(3)))
-    d = _dot(left, up)  # a second pass, as skeleton.trunk.trunk_frame
-    left, _ = _unit(tuple(left[c] - d * up[c] for c in range(3)))
-    fwd = (
-        left[1] * up[2] - left[2] * up[1],
-        left[2] * up[0] - left[0] * up[2],
-        left[0] * up[1] - left[1] * up[0],
-    )
+    up, trunk_norm = sq.unit(trunk)
+    left, left_norm = sq.unit(sq.reject(hip_axis, up))
+    left, _ = sq.unit(sq.reject(left, up))  # a second pass, as skeleton.trunk.trunk_frame
+    fwd = sq.cross(left, up)
     frame = [c for i in range(3) for c in (fwd[i], left[i], up[i])]  # row-major, columns f, l, u
     # M = body_to_root · frameᵀ maps canonical vectors into the robot root frame.
     m = [
@@ -111,7 +96,7 @@ def targets_function(
         return sq.rotate(m, v)
 
     vecs = [to_root(v) for v in summed[:nb]] + [to_root(v) for v in rotated[no:]]
-    units = [_unit(v) for v in vecs]
+    units = [sq.unit(v) for v in vecs]
     smallest = ca.mmin(ca.vertcat(*(n for _, n in units)))
     dirs = [c for u, _ in units[:nb] for c in u]
     normals = [c for u, _ in units[nb:] for c in u]

@@ -22,48 +22,25 @@ import numpy as np
 from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import symbolic_quaternion as sq
 
-_IDENTITY: sq.Mat = tuple(ca.SX(1.0 if i == j else 0.0) for i in range(3) for j in range(3))
-
-
-def _sub(a: sq.Vec, b: sq.Vec) -> sq.Vec:
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
-
-
-def _dot(a: sq.Vec, b: sq.Vec) -> ca.SX:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _transpose(m: sq.Mat) -> sq.Mat:
-    return (m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8])
-
 
 def _frame(primary: sq.Vec, secondary: sq.Vec) -> tuple[sq.Mat, ca.SX, ca.SX]:
     """Columns e1 = primary/|primary|, e2 = secondary made orthogonal, e3 = e1 × e2; and the
     two norms the numpy ``_frame`` tests."""
-    n1 = sq.norm(primary)
-    e1 = (primary[0] / n1, primary[1] / n1, primary[2] / n1)
-    d = _dot(e1, secondary)
-    s = (secondary[0] - d * e1[0], secondary[1] - d * e1[1], secondary[2] - d * e1[2])
-    n2 = sq.norm(s)
-    e2 = (s[0] / n2, s[1] / n2, s[2] / n2)
-    e3 = (
-        e1[1] * e2[2] - e1[2] * e2[1],
-        e1[2] * e2[0] - e1[0] * e2[2],
-        e1[0] * e2[1] - e1[1] * e2[0],
-    )
+    e1, n1 = sq.unit(primary)
+    e2, n2 = sq.unit(sq.reject(secondary, e1))
+    e3 = sq.cross(e1, e2)
     return (e1[0], e2[0], e3[0], e1[1], e2[1], e3[1], e1[2], e2[2], e3[2]), n1, n2
 
 
 def _shortest_arc(a: FloatArray, b: sq.Vec) -> tuple[sq.Mat, ca.SX]:
     """I + K + K²/(1 + c) for unit a (constant) onto unit b, and c = a · b."""
-    ax, ay, az = (float(x) for x in a)
-    bx, by, bz = b
-    c = ax * bx + ay * by + az * bz
-    vx, vy, vz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    a_const = tuple(ca.SX(float(x)) for x in a)
+    c = sq.dot(a_const, b)
+    vx, vy, vz = sq.cross(a_const, b)
     k: sq.Mat = (ca.SX(0.0), -vz, vy, vz, ca.SX(0.0), -vx, -vy, vx, ca.SX(0.0))
     kk = sq.matmul(k, k)
     inv = 1.0 / (1.0 + c)
-    return tuple(_IDENTITY[i] + k[i] + kk[i] * inv for i in range(9)), c
+    return tuple(sq.IDENTITY[i] + k[i] + kk[i] * inv for i in range(9)), c
 
 
 def _quaternion(m: sq.Mat) -> sq.Quat:
@@ -104,11 +81,11 @@ def positions_function(
     local: list[sq.Mat] = []
     margins: list[ca.SX] = []
     for j, parent in enumerate(parents):
-        g_parent = _IDENTITY if parent < 0 else glob[parent]
+        g_parent = sq.IDENTITY if parent < 0 else glob[parent]
         if j in triads:
             prim, (left, right) = triads[j]
             rest = rest_frames[j]
-            cur, n1, n2 = _frame(_sub(pts[prim], pts[j]), _sub(pts[left], pts[right]))
+            cur, n1, n2 = _frame(sq.sub(pts[prim], pts[j]), sq.sub(pts[left], pts[right]))
             margins += [n1 - eps, n2 - eps]
             if rest is None:
                 g = g_parent
@@ -116,16 +93,16 @@ def positions_function(
                 rest_t = tuple(ca.SX(float(x)) for x in rest.T.ravel())
                 g = sq.matmul(cur, rest_t)
             glob.append(g)
-            local.append(sq.matmul(_transpose(g_parent), g))
+            local.append(sq.matmul(sq.transpose(g_parent), g))
             continue
-        loc = _IDENTITY
+        loc = sq.IDENTITY
         child = children.get(j)
         rest_dir = rest_dirs.get(j)
         if child is not None and rest_dir is not None:
-            d_cur = sq.rotate(_transpose(g_parent), _sub(pts[child], pts[j]))
-            norm = sq.norm(d_cur)
+            d_cur = sq.rotate(sq.transpose(g_parent), sq.sub(pts[child], pts[j]))
+            direction, norm = sq.unit(d_cur)
             margins.append(norm - eps)
-            loc, c = _shortest_arc(rest_dir, (d_cur[0] / norm, d_cur[1] / norm, d_cur[2] / norm))
+            loc, c = _shortest_arc(rest_dir, direction)
             margins.append(c - (-1.0 + 1e-9))
         local.append(loc)
         glob.append(sq.matmul(g_parent, loc))
