@@ -24,14 +24,16 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import logging
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Sequence
+from collections import OrderedDict
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, ParamSpec
 
 import casadi as ca
 import numpy as np
@@ -214,6 +216,41 @@ def load_or_jit(
             (Path.cwd() / f"{lib_name}.c").unlink(missing_ok=True)
     save_function(fn, path)
     return fn
+
+
+P = ParamSpec("P")
+_MEMO_SIZE = 64
+
+
+def memoized_graph(build: Callable[P, ca.Function]) -> Callable[P, ca.Function]:
+    """``build`` run once per distinct arguments (numpy arrays compared by content), the last
+    64 kept. An SX graph of a few thousand operations takes ~0.2 s to build in Python, and its
+    callers ask for the same one per clip, per corruption kind, per model."""
+    cache: OrderedDict[Hashable, ca.Function] = OrderedDict()
+
+    @functools.wraps(build)
+    def cached(*args: P.args, **kwargs: P.kwargs) -> ca.Function:
+        key = (_freeze(args), _freeze(kwargs))
+        fn = cache.get(key)
+        if fn is None:
+            fn = cache[key] = build(*args, **kwargs)
+            if len(cache) > _MEMO_SIZE:
+                cache.popitem(last=False)
+        else:
+            cache.move_to_end(key)
+        return fn
+
+    return cached
+
+
+def _freeze(x: object) -> Hashable:
+    if isinstance(x, np.ndarray):
+        return ("ndarray", x.shape, x.dtype.str, x.tobytes())
+    if isinstance(x, Mapping):
+        return tuple(sorted((k, _freeze(v)) for k, v in x.items()))
+    if isinstance(x, (list, tuple)):
+        return tuple(_freeze(v) for v in x)
+    return x
 
 
 def _graph_key(fn: ca.Function) -> str:

@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.casadi_jit import memoized_graph
 from robot_retarget.geometry import symbolic_quaternion as sq
 
 GUARD_EPS = 1e-9
@@ -49,6 +50,7 @@ def _linear(m: FloatArray, v: Sequence[ca.SX]) -> list[ca.SX]:
     ]
 
 
+@memoized_graph
 def targets_function(
     parents: Sequence[int],
     rot_index: Sequence[int],

@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.casadi_jit import memoized_graph
 from robot_retarget.geometry import symbolic_quaternion as sq
 
 
@@ -64,6 +65,7 @@ def _quaternion(m: sq.Mat) -> sq.Quat:
     return tuple(sign * c for c in q)
 
 
+@memoized_graph
 def positions_function(
     parents: Sequence[int],
     children: Mapping[int, int],

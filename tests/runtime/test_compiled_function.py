@@ -113,3 +113,21 @@ def test_residual_step_compiled_equals_interpreted() -> None:
         (qa, pa), (qb, pb) = (s.step(q, root) for s in steps)
         np.testing.assert_allclose(qa, qb, rtol=0, atol=1e-12)
         np.testing.assert_allclose(pa, pb, rtol=0, atol=1e-12)
+
+
+def test_memoized_graph_builds_once_per_distinct_content() -> None:
+    calls: list[float] = []
+
+    @casadi_jit.memoized_graph
+    def build(scale: np.ndarray, names: dict[int, np.ndarray | None]) -> ca.Function:
+        calls.append(float(scale[0]))
+        x = ca.SX.sym("x")
+        return ca.Function("f", [x], [x * float(scale[0])])
+
+    first = build(np.array([2.0]), {1: np.zeros(2), 2: None})
+    again = build(np.array([2.0]), {2: None, 1: np.zeros(2)})  # equal content, new objects
+    other = build(np.array([3.0]), {1: np.zeros(2), 2: None})
+    assert again is first
+    assert other is not first
+    assert calls == [2.0, 3.0]
+    assert float(other(1.0)) == 3.0
