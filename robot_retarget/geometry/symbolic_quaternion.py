@@ -39,7 +39,7 @@ def conj(q: Quat) -> Quat:
 
 
 def rotvec(q: Quat) -> Vec:
-    """Rotation vector of a unit quaternion, shortest arc (as ``frame.rotvec``)."""
+    """Rotation vector of a unit quaternion, shortest arc (as ``quaternion.to_rotation_vector``)."""
     w, x, y, z = q
     flip = ca.if_else(w < 0.0, -1.0, 1.0)
     vx, vy, vz = x * flip, y * flip, z * flip
@@ -90,7 +90,8 @@ def transpose(m: Mat) -> Mat:
 
 
 def from_rotvec(r: Vec) -> Quat:
-    """Unit quaternion of a rotation vector (as ``frame.from_rotvec``), smooth at zero."""
+    """Unit quaternion of a rotation vector (as ``quaternion.from_rotation_vector``), smooth
+    at zero."""
     a = norm(r)
     half_sinc = ca.if_else(
         a < _SMALL_ANGLE, 0.5 - a * a / 48.0, ca.sin(0.5 * a) / ca.fmax(a, _SMALL_ANGLE)

@@ -1,10 +1,10 @@
 """numpy building blocks of the live pipeline's per-frame network steps (no torch).
 
 A network's online step works on one frame of a few hundred numbers, where torch spends nearly
-all its time dispatching ops. The numpy twins of the models' steps (fast_residual, fast_pmnet)
-share what this module holds:
+all its time dispatching ops. The numpy twins of the models' steps (runtime.pmnet,
+runtime.tdcn, runtime.copy, runtime.residual) share what this module holds:
 
-- quaternion products, logs and exponentials and rotation matrices written as few array ops
+- quaternion products and rotation matrices written as few array ops
   (tables from robot_retarget.geometry.quaternion_tables);
 - :class:`TreeKinematics`: root-relative joint positions by pointer jumping, as the torch
   ``FrameKinematics``;
@@ -42,15 +42,6 @@ def qmul(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.asarray(outer @ _HAMILTON, dtype=np.float64)
 
 
-def left_matrices(q: FloatArray) -> FloatArray:
-    """(…, 4, 4) matrices L(q) with q ⊗ p = L(q) p."""
-    return np.asarray(q @ _LEFT, dtype=np.float64).reshape(*q.shape[:-1], 4, 4)
-
-
-# H[i, k, o]: the coefficient of a_i b_k in output o, so L(a)[o, k] = Σ_i a_i H[i, k, o].
-_LEFT = np.einsum("iko->iok", _HAMILTON.reshape(4, 4, 4)).reshape(4, 16)
-
-
 _MATRIX = matrix_table()
 
 
@@ -58,25 +49,6 @@ def matrices(q: FloatArray) -> FloatArray:
     """Rotation matrices (J, 3, 3) of unit quaternions (J, 4)."""
     outer = (q[:, :, None] * q[:, None, :]).reshape(-1, 16)
     return np.asarray(outer @ _MATRIX, dtype=np.float64).reshape(-1, 3, 3)
-
-
-def rotvec(q: FloatArray) -> FloatArray:
-    """Rotation vectors (…, 3) of unit quaternions (…, 4), shortest arc.
-
-    2·atan2(s, |w|)/s stays exact for tiny s (atan2 does not lose the ratio) and gives 0 at
-    s = 0, so no series branch is needed (geometry.quaternion.to_rotation_vector agrees, tested).
-    """
-    w = q[..., :1]
-    v = q[..., 1:] * np.where(w < 0.0, -1.0, 1.0)
-    s = np.sqrt(np.sum(v * v, axis=-1, keepdims=True))
-    return np.asarray(2.0 * np.arctan2(s, np.abs(w)) / np.maximum(s, 1e-300) * v)
-
-
-def from_rotvec(r: FloatArray) -> FloatArray:
-    """Unit quaternions (…, 4) of rotation vectors (…, 3)."""
-    angle = np.sqrt(np.sum(r * r, axis=-1, keepdims=True))
-    # sin(a/2)/a = ½·sinc(a/2π): exact and smooth at zero.
-    return np.concatenate([np.cos(0.5 * angle), 0.5 * np.sinc(angle / (2 * np.pi)) * r], axis=-1)
 
 
 class TreeKinematics:

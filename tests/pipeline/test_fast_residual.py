@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 import torch
@@ -10,6 +11,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from robot_retarget.geometry import quaternion as quat
+from robot_retarget.geometry import symbolic_quaternion as sq
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.nn.inference import LoadedModel
 from robot_retarget.nn.models.registry import build_model
@@ -85,6 +87,12 @@ def test_inputs_are_not_modified(demo: HumanMotion) -> None:
     np.testing.assert_array_equal(quats, demo.local_quats[5])
 
 
+_Q = ca.SX.sym("q", 4)
+_R = ca.SX.sym("r", 3)
+_SX_LOG = ca.Function("log", [_Q], [ca.vertcat(*sq.rotvec([_Q[i] for i in range(4)]))])
+_SX_EXP = ca.Function("exp", [_R], [ca.vertcat(*sq.from_rotvec([_R[i] for i in range(3)]))])
+
+
 @settings(max_examples=50, deadline=None)
 @given(
     arrays(np.float64, (8, 3), elements=st.floats(-3.1, 3.1)),
@@ -93,9 +101,14 @@ def test_inputs_are_not_modified(demo: HumanMotion) -> None:
 def test_rotation_vectors_agree_with_the_geometry_module(
     rotvecs: np.ndarray, shrink: float
 ) -> None:
-    """The fast shortest-arc log, for large, tiny and zero rotations and both signs of q."""
-    from robot_retarget.runtime.frame import from_rotvec as _from_rotvec
-    from robot_retarget.runtime.frame import rotvec as _rotvec
+    """The compiled steps' shortest-arc log and exponential (geometry.symbolic_quaternion),
+    for large, tiny and zero rotations and both signs of q."""
+
+    def _rotvec(q: np.ndarray) -> np.ndarray:
+        return np.array([_SX_LOG(row).full().ravel() for row in q])
+
+    def _from_rotvec(r: np.ndarray) -> np.ndarray:
+        return np.array([_SX_EXP(row).full().ravel() for row in r])
 
     for r in (rotvecs, rotvecs * shrink, np.zeros((2, 3))):
         q = quat.from_rotation_vector(r)
