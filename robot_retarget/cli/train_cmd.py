@@ -13,10 +13,13 @@ import os
 import shlex
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robot_retarget.cli.data_dir import add_data_argument
 from robot_retarget.errors import RetargetError
+
+if TYPE_CHECKING:
+    from robot_retarget.nn.motion_augmentation import MotionAugmentation
 
 NAME = "train"
 HELP = "Train a retargeting network (nkn, pmnet) on a folder of BVH clips."
@@ -126,6 +129,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="agnostic2d: N processes render the camera views ahead of the training step "
         "(default 0: in the training process; the batches are the same either way)",
     )
+    parser.add_argument(
+        "--mirror-probability",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="agnostic2d: chance a training window is mirrored left-right (default 0)",
+    )
+    parser.add_argument(
+        "--speed-range",
+        default="1,1",
+        metavar="LOW,HIGH",
+        help="agnostic2d: playback speed factors of training windows, drawn log-uniformly "
+        "(default 1,1: unchanged; e.g. 0.8,1.25)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -143,6 +160,11 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     if args.model == "agnostic2d":
         return _run_agnostic2d(args)
+    if args.mirror_probability != 0.0 or args.speed_range != "1,1":
+        raise TrainArgumentError(
+            f"--mirror-probability and --speed-range augment agnostic2d's windows; {args.model} "
+            "does not use them (drop them, or pass --model agnostic2d)"
+        )
     subjects = tuple(s for s in args.val_subjects.split(",") if s)
     robots = tuple(r for r in args.robots.split(",") if r)
     if args.resume and Path(args.out, "config.json").is_file():
@@ -245,6 +267,19 @@ def _command_line() -> str:
     return "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
 
 
+def _motion_augmentation(mirror_probability: float, speed_range: str) -> MotionAugmentation:
+    from robot_retarget.nn.motion_augmentation import MotionAugmentation
+
+    try:
+        low, high = (float(v) for v in speed_range.split(","))
+        return MotionAugmentation(mirror_probability, (low, high))
+    except ValueError as exc:
+        raise TrainArgumentError(
+            f"--mirror-probability {mirror_probability} / --speed-range {speed_range!r}: {exc}; "
+            "use a probability in [0, 1] and LOW,HIGH with 0 < LOW ≤ HIGH, e.g. 0.8,1.25"
+        ) from exc
+
+
 def _run_agnostic2d(args: argparse.Namespace) -> int:
     """The 2D keypoint model has its own loop (two camera views per window, 3D targets)."""
     from robot_retarget.nn.agnostic2d_training import (
@@ -262,6 +297,7 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
             f"--loss-weight {unknown}: agnostic2d's weights are triplet, direction and limb"
         )
     config = KeypointTrainConfig(
+        augment=_motion_augmentation(args.mirror_probability, args.speed_range),
         triplet_weight=float(weights.get("triplet", 0.1)),
         direction_weight=float(weights.get("direction", 1.0)),
         limb_weight=float(weights.get("limb", 0.0)),

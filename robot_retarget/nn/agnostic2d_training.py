@@ -51,6 +51,7 @@ from robot_retarget.nn.dataset import (
 )
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
 from robot_retarget.nn.models.registry import KEYPOINT_MODELS
+from robot_retarget.nn.motion_augmentation import MotionAugmentation, augmented_window
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime, save_agnostic2d
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint, default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
@@ -84,6 +85,7 @@ class KeypointTrainConfig:
     model_config: dict[str, Any] = field(default_factory=dict)
     max_frames: int | None = None
     cache_dir: str | None = None
+    augment: MotionAugmentation = field(default_factory=lambda: MotionAugmentation())
     device: str = "cpu"  # "cuda" where a GPU is lent; batches are still rendered on the CPU
     loader_workers: int = 0  # processes rendering batches ahead of the training step
 
@@ -136,16 +138,20 @@ class TwoViewSampler:
         seed: int = 0,
         cameras: CameraRange | None = None,
         noise: EstimatorNoise | None = None,
+        augment: MotionAugmentation | None = None,
     ) -> None:
-        self.clips = [c for c in dataset.clips if c.num_frames >= window_frames]
+        self.augment = augment or MotionAugmentation()
+        # A window at the fastest speed reads this many source frames.
+        need = self.augment.source_frames(window_frames, self.augment.speed[1])
+        self.clips = [c for c in dataset.clips if c.num_frames >= need]
         if not self.clips:
-            raise KeypointTrainError(f"no training clip has {window_frames} frames; use --window")
+            raise KeypointTrainError(f"no training clip has {need} frames; use --window")
         self.window_frames = window_frames
         self.batch_size = batch_size
         self.seed = seed
         self.cameras = cameras or CameraRange()
         self.noise = noise or EstimatorNoise()
-        starts = np.array([c.num_frames - window_frames + 1 for c in self.clips], dtype=np.float64)
+        starts = np.array([c.num_frames - need + 1 for c in self.clips], dtype=np.float64)
         self._p = starts / starts.sum()
 
     def sample(self, step: int) -> RenderedBatch:
@@ -158,7 +164,12 @@ class TwoViewSampler:
         views: list[list[tuple[FloatArray, FloatArray, FloatArray]]] = [[], []]
         for _ in range(self.batch_size):
             clip = self.clips[int(rng.choice(len(self.clips), p=self._p))]
-            start = int(rng.integers(0, clip.num_frames - self.window_frames + 1))
+            if self.augment.active:
+                # One motion per window, the same in both views (the triplet loss's positive).
+                clip = augmented_window(clip, self.window_frames, rng, self.augment)
+                start = 0
+            else:  # the batches of checkpoints trained before augmentation existed
+                start = int(rng.integers(0, clip.num_frames - self.window_frames + 1))
             for view in views:
                 offsets = augment_offsets(clip.offsets, rng, _SKELETON_AUGMENTATION)
                 camera = self.cameras.sample(rng)
@@ -395,7 +406,11 @@ def train_agnostic2d(
         opt, T_max=max(cfg.steps, 1), eta_min=cfg.lr * 0.05
     )
     sampler = TwoViewSampler(
-        train_set, window_frames=cfg.window_frames, batch_size=cfg.batch_size, seed=cfg.seed
+        train_set,
+        window_frames=cfg.window_frames,
+        batch_size=cfg.batch_size,
+        seed=cfg.seed,
+        augment=cfg.augment,
     )
     val_batch = _on(validation_batch(val_set, cfg.window_frames), device)
     meta_base = {

@@ -32,7 +32,8 @@ from robot_retarget.keypoints.normalize import (
     normalize_sequences,
 )
 from robot_retarget.runtime.npz_file import read_runtime_npz, write_runtime_npz
-from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, MIRROR_PAIRS
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
+from robot_retarget.skeleton.mirror import mirror_rotations, swap_index
 
 ARCHITECTURE = "agnostic2d"
 FORMAT_VERSION = 1
@@ -89,25 +90,7 @@ class Agnostic2DWeights:
         )
 
 
-def _mirror_index(pairs: list[tuple[int, int]], n: int) -> np.ndarray:
-    index = np.arange(n)
-    for left, right in pairs:
-        index[left], index[right] = right, left
-    return index
-
-
-_KEYPOINT_MIRROR = _mirror_index(list(FLIP_PAIRS), NUM_KEYPOINTS)
-_JOINT_MIRROR = _mirror_index(
-    [(CANONICAL_JOINTS.index(a), CANONICAL_JOINTS.index(b)) for a, b in MIRROR_PAIRS], _J
-)
-
-
-def mirror_rotations(q: FloatArray) -> FloatArray:
-    """Canonical local rotations (…, 22, 4) of the left-right mirrored pose (x → −x: the
-    canonical skeleton is symmetric about the x = 0 plane, left = +x)."""
-    m = np.array(q[..., _JOINT_MIRROR, :])
-    m[..., 2:] *= -1.0  # a reflection of x keeps w and the x component, negates y and z
-    return m
+_KEYPOINT_MIRROR = swap_index(list(FLIP_PAIRS), NUM_KEYPOINTS)
 
 
 def _lrelu(x: FloatArray) -> FloatArray:

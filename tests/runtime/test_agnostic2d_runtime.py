@@ -106,7 +106,7 @@ def test_any_keypoints_give_unit_rotations(coords: list[float], seen: list[bool]
 def test_mirror_average_is_exactly_mirror_symmetric() -> None:
     """convert's mirrored-image averaging: mirroring the image mirrors the answer."""
     from robot_retarget.keypoints.coco17 import FLIP_PAIRS
-    from robot_retarget.runtime.agnostic2d import mirror_rotations
+    from robot_retarget.skeleton.mirror import mirror_rotations
 
     rt = load_keypoint_model()
     rng = np.random.default_rng(4)

@@ -1,0 +1,81 @@
+"""Motion augmentation for training windows: left–right mirroring and playback speed.
+
+A model trained on seven performers' clips learns their motions as much as the mapping; the
+keypoint model scored 7.5° of bone direction on its training subjects and 10.7° on new ones.
+Mirroring doubles the motions (a left-handed throw from a right-handed one) and a speed change
+between ``speed`` bounds (drawn log-uniformly: 0.8–1.25 is as likely slower as faster) moves
+each motion's timing, both with exact 3D ground truth.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from robot_retarget.array_types import FloatArray
+from robot_retarget.nn.dataset import Clip
+from robot_retarget.skeleton.mirror import mirror_offsets, mirror_points, mirror_rotations
+
+
+@dataclass(frozen=True)
+class MotionAugmentation:
+    """``mirror_probability``: the chance a window is mirrored; ``speed`` (low, high): the
+    range of playback speed factors (1, 1: unchanged)."""
+
+    mirror_probability: float = 0.0
+    speed: tuple[float, float] = (1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.mirror_probability <= 1.0:
+            raise ValueError(f"mirror probability must be in [0, 1], got {self.mirror_probability}")
+        low, high = self.speed
+        if not 0.0 < low <= high:
+            raise ValueError(f"speed range must be 0 < low ≤ high, got {self.speed}")
+
+    @property
+    def active(self) -> bool:
+        return self.mirror_probability > 0.0 or self.speed != (1.0, 1.0)
+
+    @staticmethod
+    def source_frames(frames: int, speed: float) -> int:
+        """Source frames a window of ``frames`` output frames reads at ``speed``."""
+        return frames if speed == 1.0 else math.ceil((frames - 1) * speed) + 1
+
+
+def resample(values: FloatArray, times: FloatArray, *, quaternions: bool) -> FloatArray:
+    """``values`` (T, …) at fractional frame ``times`` (N,): linear, or normalised linear
+    (nlerp, hemisphere-aligned) for quaternions (…, 4)."""
+    lo = np.clip(np.floor(times).astype(np.int64), 0, len(values) - 1)
+    hi = np.minimum(lo + 1, len(values) - 1)
+    w = (times - lo).reshape((-1,) + (1,) * (values.ndim - 1))
+    a, b = values[lo], values[hi]
+    if not quaternions:
+        return np.asarray(a + (b - a) * w)
+    b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
+    q = a + (b - a) * w
+    return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True))
+
+
+def augmented_window(
+    clip: Clip, frames: int, rng: np.random.Generator, augmentation: MotionAugmentation
+) -> Clip:
+    """A random window of ``frames`` frames of ``clip``, at a random speed and mirrored by
+    chance, as a clip of its own (start it at frame 0)."""
+    low, high = augmentation.speed
+    speed = float(math.exp(rng.uniform(math.log(low), math.log(high))))
+    need = augmentation.source_frames(frames, speed)
+    if clip.num_frames < need:
+        raise ValueError(f"{clip.name}: {clip.num_frames} frames, a window needs {need}")
+    start = int(rng.integers(0, clip.num_frames - need + 1))
+    times = np.arange(frames, dtype=np.float64) * speed
+    quats = resample(clip.local_quats[start : start + need], times, quaternions=True)
+    root = resample(clip.root_pos[start : start + need], times, quaternions=False)
+    offsets = clip.offsets
+    if rng.random() < augmentation.mirror_probability:
+        quats, root, offsets = mirror_rotations(quats), mirror_points(root), mirror_offsets(offsets)
+    return dataclasses.replace(
+        clip, name=f"{clip.name}@{start}", local_quats=quats, root_pos=root, offsets=offsets
+    )
