@@ -128,7 +128,7 @@ class FastResidualRetargeter:
             self._started = True
         self._features()
         self._past[...] = self._past_next.reshape(self._past.shape)
-        x = self._feats
+        x = self._feats.astype(np.float32)
         *hidden, last = self._den_layers
         for m in hidden:
             x = np.maximum(x @ m, 0.0)
@@ -149,10 +149,11 @@ class FastResidualRetargeter:
         return self._out.copy(), out_pos
 
 
-def _denoiser_layers(w: ResidualWeights, history: int) -> list[FloatArray]:
-    """The denoiser's layers as right-multiplied matrices on rows ``[features, one-hot]``: the
-    first layer's bias joins the one-hot rows (they sum to 1) and a column carries a constant
-    1 through the hidden layers for the next biases."""
+def _denoiser_layers(w: ResidualWeights, history: int) -> list[F32Array]:
+    """The denoiser's layers as right-multiplied float32 matrices (as the torch model; half
+    the time of float64) on rows ``[features, one-hot]``: the first layer's bias joins the
+    one-hot rows (they sum to 1) and a column carries a constant 1 through the hidden layers
+    for the next biases."""
     (d0, e0), *rest = w.denoiser_layers
     n_feat = 4 * history + 1
     first = np.zeros((d0.shape[1], d0.shape[0] + 1))
@@ -162,7 +163,7 @@ def _denoiser_layers(w: ResidualWeights, history: int) -> list[FloatArray]:
     layers = [first]
     for i, (wi, bi) in enumerate(rest):
         layers.append(_affine(wi, bi, keep_one=i < len(rest) - 1).T.copy())
-    return layers
+    return [m.astype(np.float32) for m in layers]
 
 
 def _correction_layers(
