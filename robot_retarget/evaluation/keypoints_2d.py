@@ -13,6 +13,9 @@ elevation −10…45°, distance and focal length at random, never these on thes
    the same pipeline. The camera's azimuth is turned back on the root (a calibrated camera
    knows it); the scores below do not depend on heading anyway.
 
+The ``lifted`` rows are the keypoint model's own error, with no robot: the lifted performer's
+segments against the truth's, each in its own body frame, at the same 10 fps.
+
 Scores as eval-robot's pipeline column (robot_retarget.evaluation.robot): per evaluation
 frame (10 fps) the angle between each of the 9 human and robot segment directions (upper arms,
 forearms, thighs, shins, torso) in the body frame, the robot on its trajectory's floating base
@@ -141,6 +144,23 @@ class Scorer:
             stats.speed_violations,
         )
 
+    def score_lifted(
+        self, truth: HumanMotion, lifted: HumanMotion
+    ) -> tuple[float, float, float, int, int]:
+        """The keypoint model's own error: the lifted performer's segments against the truth's,
+        each in its own body frame, at the evaluation rate (no robot, so no violations)."""
+        rate = float(lifted.fps)
+        stride = max(1, round(rate * self.stride / self.rate))
+        truth_pos = truth.resample(rate).positions()
+        lifted_pos = lifted.positions()
+        n = min(truth_pos.shape[0], lifted_pos.shape[0])
+        ang = np.degrees(
+            segment_angles(
+                human_body_points(truth_pos[:n:stride]), human_body_points(lifted_pos[:n:stride])
+            )
+        )
+        return float(ang.mean()), float(ang[:, :8].mean()), n / rate, 0, 0
+
     def score_run(
         self, truth: HumanMotion, run: PipelineRun
     ) -> tuple[float, float, float, int, int]:
@@ -176,6 +196,8 @@ def evaluate_2d(
                 seq = keypoints_of(truth, cam, rng, noise)
                 for causal, label in ((False, "2d clip"), (True, "2d stream")):
                     lifted = world_heading(lift_keypoints(seq, keypoint_model, causal=causal), cam)
+                    own = scorer.score_lifted(truth, lifted)
+                    rows.setdefault(f"lifted, {label[3:]}", InputScore()).add(*own)
                     scores = scorer.score_run(truth, run(lifted))
                     rows.setdefault(f"{label} @ {elevation:g}°", InputScore()).add(*scores)
                     rows.setdefault(label, InputScore()).add(*scores)
@@ -207,4 +229,8 @@ def markdown_2d(report: Eval2DReport) -> str:
             f"| {key} | {r.direction_deg:.2f} | {r.direction_deg - base:+.2f} | "
             f"{r.limb_deg:.2f} | {r.limit_violations} | {r.speed_violations} |"
         )
+    for key in ("lifted, clip", "lifted, stream"):  # no robot: no comparison, no violations
+        if key in report.rows:
+            r = report.rows[key]
+            lines.append(f"| {key} | {r.direction_deg:.2f} | — | {r.limb_deg:.2f} | — | — |")
     return "\n".join(lines)

@@ -56,11 +56,12 @@ class LiftedKeypoints:
 def lift_keypoints(
     sequence: KeypointSequence, model: Agnostic2DRuntime, *, causal: bool = False
 ) -> HumanMotion:
-    """The performer's motion on the reference skeleton (``causal=False``: the whole clip's
-    static codes and the mirrored image's answer averaged in, as ``convert`` uses)."""
+    """The performer's motion on the reference skeleton, averaged with the mirrored image's
+    answer (``causal=False``: the whole clip's static codes, as ``convert`` uses; ``True``: as
+    ``stream``'s step computes it frame by frame)."""
     skeleton = default_canonical_skeleton()
-    # The whole clip is at hand offline: average with the mirrored image's answer too.
-    quats = model.run_clip(sequence.xy, sequence.valid, causal=causal, mirror_average=not causal)
+    # Averaged with the mirrored image's answer, as the live step does (Agnostic2DRuntime.online).
+    quats = model.run_clip(sequence.xy, sequence.valid, causal=causal, mirror_average=True)
     seen = body_seen(sequence)
     if not seen.any():
         raise MotionFormatError(

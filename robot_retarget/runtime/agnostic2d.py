@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -128,6 +128,16 @@ def _pointwise(x: FloatArray, conv: Conv) -> FloatArray:
     return r
 
 
+class KeypointStep(Protocol):
+    """The causal keypoint model one camera frame at a time (what ``stream`` runs)."""
+
+    def reset(self) -> None: ...
+
+    def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
+        """COCO-17 pixels (17, 2) (NaN where invalid) and visibility (17,) → (22, 4)."""
+        ...
+
+
 @dataclass(frozen=True)
 class Agnostic2DRuntime:
     """A trained keypoint model ready to run (weights and provenance)."""
@@ -184,15 +194,33 @@ class Agnostic2DRuntime:
         direct = self.run_features(feats, causal=causal)
         if not mirror_average:
             return direct
-        flipped = p[:, _KEYPOINT_MIRROR].copy()
-        flipped[..., 0] *= -1.0
-        mirrored_feats = normalize_sequences(flipped[None], v[None][:, :, _KEYPOINT_MIRROR])[0]
-        back = mirror_rotations(self.run_features(mirrored_feats, causal=causal))
-        back = np.where(((direct * back).sum(-1) < 0.0)[..., None], -back, back)
-        return quat.normalize(direct + back)
+        flipped, flipped_valid = mirror_image(p, v)
+        mirrored_feats = normalize_sequences(flipped[None], flipped_valid[None])[0]
+        return average_with_mirrored(direct, self.run_features(mirrored_feats, causal=causal))
 
-    def online(self) -> Agnostic2DStep:
+    def online(self, *, mirror_average: bool = True) -> KeypointStep:
+        """The causal step for ``stream``; ``mirror_average`` (default) also steps the mirrored
+        image, as ``run_clip(causal=True, mirror_average=True)``: twice the arithmetic, 0.7°
+        less lifted-pose error on the validation clips (11.6° → 10.9°)."""
+        if mirror_average:
+            return MirrorAveragedStep(self.weights)
         return Agnostic2DStep(self.weights)
+
+
+def mirror_image(xy: FloatArray, valid: BoolArray) -> tuple[FloatArray, BoolArray]:
+    """COCO-17 pixels (..., 17, 2) and visibility (..., 17) of the left-right mirrored image
+    (x negated: the features are normalised, so no image width is needed)."""
+    flipped = np.array(xy[..., _KEYPOINT_MIRROR, :], dtype=np.float64)
+    flipped[..., 0] *= -1.0
+    return flipped, np.asarray(valid[..., _KEYPOINT_MIRROR], dtype=bool)
+
+
+def average_with_mirrored(direct: FloatArray, from_mirrored: FloatArray) -> FloatArray:
+    """The mean rotation of ``direct`` and the mirror of the mirrored image's answer (both
+    (..., 22, 4)); exactly mirror-symmetric in the image."""
+    back = mirror_rotations(from_mirrored)
+    back = np.where(((direct * back).sum(-1) < 0.0)[..., None], -back, back)
+    return quat.normalize(direct + back)
 
 
 class Agnostic2DStep:
@@ -245,6 +273,28 @@ class Agnostic2DStep:
         return self.step_features(feats)
 
 
+class MirrorAveragedStep:
+    """:class:`Agnostic2DStep` on the image and on its mirror, answers averaged (the causal
+    twin of ``run_clip(causal=True, mirror_average=True)``)."""
+
+    def __init__(self, weights: Agnostic2DWeights) -> None:
+        self._direct = Agnostic2DStep(weights)
+        self._mirrored = Agnostic2DStep(weights)
+
+    def reset(self) -> None:
+        self._direct.reset()
+        self._mirrored.reset()
+
+    def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
+        """COCO-17 pixels (17, 2) (NaN where invalid) and visibility (17,) → (22, 4)."""
+        p = np.asarray(xy, dtype=np.float64)
+        v = np.asarray(valid, dtype=bool)
+        flipped, flipped_valid = mirror_image(p, v)
+        return average_with_mirrored(
+            self._direct.step(p, v), self._mirrored.step(flipped, flipped_valid)
+        )
+
+
 def save_agnostic2d(model: Agnostic2DRuntime, path: str | os.PathLike[str]) -> Path:
     """Write a runtime ``.npz`` (see the module docstring)."""
     out = Path(path)
@@ -284,7 +334,7 @@ def load_agnostic2d(path: str | os.PathLike[str]) -> Agnostic2DRuntime:
         metadata=dict(meta.get("metadata", {})),
     )
     try:  # wrong shapes fail here, at load, not in the live loop
-        model.online().step_features(np.zeros(FEATURES_PER_FRAME))
+        Agnostic2DStep(weights).step_features(np.zeros(FEATURES_PER_FRAME))
     except (ValueError, IndexError) as exc:
         raise ModelLoadError(f"runtime weights do not fit {ARCHITECTURE}: {exc}", path=p) from None
     return model

@@ -43,6 +43,18 @@ def test_remote_keypoint_sources_need_permission_and_a_token() -> None:
         stream_cmd.run(_args("--source", "udp-keypoints://0.0.0.0:9751", "--allow-remote"))
 
 
+def _wait_until_bound(port: int, stop: threading.Event, timeout_s: float = 60.0) -> None:
+    """Return once something listens on UDP ``port`` (binding it ourselves fails)."""
+    deadline = time.monotonic() + timeout_s
+    while not stop.is_set() and time.monotonic() < deadline:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", port))
+            except OSError:
+                return
+        time.sleep(0.01)
+
+
 def test_keypoint_packets_drive_the_simulator(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
@@ -52,8 +64,8 @@ def test_keypoint_packets_drive_the_simulator(
     stop = threading.Event()
 
     def send() -> None:
+        _wait_until_bound(port, stop)  # a packet sent before the stream listens is lost
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
-            time.sleep(0.5)
             t0 = time.monotonic()
             for i in range(people.shape[0]):
                 if stop.is_set():

@@ -39,8 +39,31 @@ def test_every_row_and_elevation_within_limits() -> None:
             assert row.speed_violations == 0
             assert np.isfinite(row.direction_deg)
     assert report.rows["3d"].runs == 1
+    for label in ("lifted, clip", "lifted, stream"):  # the keypoint model's own error
+        assert report.rows[label].runs == 4 * len(ELEVATIONS_DEG)
+        assert 0.0 < report.rows[label].direction_deg < 90.0
     table = markdown_2d(report)
     assert "| 2d stream @ 30° |" in table
+    assert "| lifted, stream |" in table
+
+
+def test_the_lifted_score_is_zero_for_the_truth_and_grows_with_a_bent_limb() -> None:
+    scorer = Scorer(load_robot_config("op3"))
+    truth = load_motion(CLIP)
+    at_camera_rate = truth.resample(30.0)
+    own = scorer.score_lifted(truth, at_camera_rate)
+    assert own[0] == pytest.approx(0.0, abs=1e-6)
+    assert own[2] == pytest.approx(at_camera_rate.num_frames / 30.0)
+    q = np.array(at_camera_rate.local_quats)
+    from robot_retarget.skeleton.canonical import Joint
+
+    q[:, Joint.LeftForeArm] = [np.cos(0.5), np.sin(0.5), 0.0, 0.0]  # elbow bent 60° about x
+    bent = type(at_camera_rate)(
+        at_camera_rate.skeleton, q, at_camera_rate.root_pos, 30.0, at_camera_rate.source_path
+    )
+    worse = scorer.score_lifted(truth, bent)
+    assert worse[0] > 1.0
+    assert worse[1] > worse[0]  # a limb segment: the limb mean (8 of 9 segments) rises more
 
 
 def test_world_heading_undoes_the_camera_azimuth() -> None:

@@ -16,6 +16,7 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
 from robot_retarget.runtime.agnostic2d import (
     Agnostic2DRuntime,
+    Agnostic2DStep,
     load_agnostic2d,
     load_keypoint_model,
     save_agnostic2d,
@@ -40,7 +41,7 @@ def test_runtime_equals_torch(model: Agnostic2D, causal: bool) -> None:
     rt = Agnostic2DRuntime(model.export_weights())
     assert _angle(rt.run_features(x[0].double().numpy(), causal=causal), ref) < 1e-4
     if causal:
-        step = rt.online()
+        step = Agnostic2DStep(rt.weights)
         online = np.stack([step.step_features(f) for f in x[0].double().numpy()])
         assert _angle(online, ref) < 1e-4
 
@@ -122,3 +123,22 @@ def test_mirror_average_is_exactly_mirror_symmetric() -> None:
     dots = np.abs((mirror_rotations(q) * qm).sum(-1))
     np.testing.assert_allclose(dots, 1.0, atol=1e-9)
     np.testing.assert_allclose(mirror_rotations(mirror_rotations(q)), q)
+
+
+def test_the_mirror_averaged_step_is_the_causal_clip_run_frame_by_frame() -> None:
+    """stream's step (image and mirror, averaged) equals run_clip(causal, mirror_average)."""
+    rt = load_keypoint_model()
+    rng = np.random.default_rng(7)
+    xy = rng.uniform(200, 700, (30, 17, 2))
+    valid = rng.random((30, 17)) > 0.15
+    xy[~valid] = np.nan  # what the sources hand over for a missing point
+    clip = rt.run_clip(xy, valid, causal=True, mirror_average=True)
+    step = rt.online()
+    online = np.stack([step.step(xy[t], valid[t]) for t in range(30)])
+    assert _angle(online, clip) < 1e-6  # arccos near 1 resolves ~1e-8
+    plain = rt.online(mirror_average=False)
+    direct = np.stack([plain.step(xy[t], valid[t]) for t in range(30)])
+    assert _angle(direct, rt.run_clip(xy, valid, causal=True)) < 1e-6
+    assert _angle(direct, online) > 1e-3  # the mirror changes the answer
+    step.reset()
+    np.testing.assert_allclose(step.step(xy[0], valid[0]), online[0])
