@@ -1,9 +1,11 @@
 """``bench model --model agnostic2d``: the keypoint model's time per frame.
 
 Rows: ``online-numpy`` (the causal step ``stream`` runs: features, encoders, head → 22
-rotations, one camera frame at a time), ``clip-numpy`` (``convert``'s whole-clip pass, time /
-frames) and ``clip`` (the torch model's forward pass, time / frames). Input: the built-in demo
-clip seen by a virtual camera with estimator-like noise (timing does not depend on it).
+rotations, one camera frame at a time, for the image and its mirror), ``online-numpy-single``
+(the same step on the image alone, timed alternately with it), ``clip-numpy`` (``convert``'s
+whole-clip pass, time / frames) and ``clip`` (the torch model's forward pass, time / frames).
+Input: the built-in demo clip seen by a virtual camera with estimator-like noise (timing does
+not depend on it).
 """
 
 from __future__ import annotations
@@ -38,13 +40,16 @@ def time_keypoint_model(
     )  # fmt: skip
     n = px.shape[0]
     runtime = load_keypoint_model()
-    step = runtime.online()
-    online = []
+    # The two steps alternate frame by frame, so both see the same machine load.
+    mirrored, single = runtime.online(), runtime.online(mirror_average=False)
+    online: list[float] = []
+    online_single: list[float] = []
     for i in range(frames + warmup):
-        t0 = time.perf_counter()
-        step.step(px[i % n], valid[i % n])
-        if i >= warmup:
-            online.append(time.perf_counter() - t0)
+        for step, times in ((mirrored, online), (single, online_single)):
+            t0 = time.perf_counter()
+            step.step(px[i % n], valid[i % n])
+            if i >= warmup:
+                times.append(time.perf_counter() - t0)
     clip_np, clip_torch = [], []
     model, _payload = load_keypoint_checkpoint(SHIPPED_KEYPOINT_MODEL.with_suffix(".pt"))
     feats = torch.from_numpy(normalize_sequences(px[None], valid[None]).astype(np.float32))
@@ -58,8 +63,9 @@ def time_keypoint_model(
             model(feats, False)
             clip_torch.append((time.perf_counter() - t0) / n)
     out = []
-    for mode, durations, count in (("online-numpy", online, frames), ("clip-numpy", clip_np, n),
-                                   ("clip", clip_torch, n)):  # fmt: skip
+    rows = (("online-numpy", online, frames), ("online-numpy-single", online_single, frames),
+            ("clip-numpy", clip_np, n), ("clip", clip_torch, n))  # fmt: skip
+    for mode, durations, count in rows:
         stats = TimingStats.from_seconds(durations)
         out.append({"model": NAME, "mode": mode, "frames": count, "median_ms": stats.median_ms,
                     "p99_ms": stats.p99_ms, "weights": "trained", "threads": threads})  # fmt: skip

@@ -142,3 +142,13 @@ def test_the_mirror_averaged_step_is_the_causal_clip_run_frame_by_frame() -> Non
     assert _angle(direct, online) > 1e-3  # the mirror changes the answer
     step.reset()
     np.testing.assert_allclose(step.step(xy[0], valid[0]), online[0])
+
+
+def test_keypoint_benchmark_times_both_steps_side_by_side() -> None:
+    from robot_retarget.nn.keypoint_benchmark import time_keypoint_model
+
+    rows = time_keypoint_model(frames=20, warmup=2, repeats=1, threads=1)
+    modes = {r["mode"]: r for r in rows}
+    assert set(modes) == {"online-numpy", "online-numpy-single", "clip-numpy", "clip"}
+    assert modes["online-numpy"]["frames"] == modes["online-numpy-single"]["frames"] == 20
+    assert all(r["median_ms"] > 0.0 for r in rows)
