@@ -223,76 +223,97 @@ def average_with_mirrored(direct: FloatArray, from_mirrored: FloatArray) -> Floa
     return quat.normalize(direct + back)
 
 
-class Agnostic2DStep:
-    """The causal model one frame at a time: ``step(xy (17, 2), valid (17,)) → (22, 4)``."""
+class _StreamSteps:
+    """The causal model one frame at a time for ``streams`` independent streams at once: each
+    layer is one matrix product on a column per stream (the mirrored image rides along for
+    little more than the cost of one)."""
 
-    def __init__(self, weights: Agnostic2DWeights) -> None:
+    def __init__(self, weights: Agnostic2DWeights, streams: int) -> None:
         self._w = weights
+        self._streams = streams
         self._layers: list[tuple[FloatArray, FloatArray, int]] = []
         for kern, bias in weights.motion:
             out_c, in_c, k = kern.shape
-            self._layers.append((kern.reshape(out_c, in_c * k), bias, k))
+            # Columns ordered (input channel, tap) to match buffer[:, ::d] flattened per stream.
+            self._layers.append((kern.reshape(out_c, in_c * k), bias[:, None], k))
         self._dil = [int(d) for d in weights.dilations]
-        self._normalizer = KeypointNormalizer(1)
+        self._normalizer = KeypointNormalizer(streams)
         self.reset()
 
     def reset(self) -> None:
         self._normalizer.reset()
+        b = self._streams
         self._buffers = [
-            np.zeros((flat.shape[1] // k, (k - 1) * d + 1))
+            np.zeros((flat.shape[1] // k, (k - 1) * d + 1, b))
             for (flat, _b, k), d in zip(self._layers, self._dil, strict=True)
         ]
         self._sums = [
-            np.zeros(self._w.skeleton[1][1].shape[0]),
-            np.zeros(self._w.view[1][1].shape[0]),
+            np.zeros((self._w.skeleton[1][1].shape[0], b)),
+            np.zeros((self._w.view[1][1].shape[0], b)),
         ]
         self._count = 0
 
     def step_features(self, features: FloatArray) -> FloatArray:
-        """One frame's features (51,) → local rotations (22, 4)."""
+        """One frame's features (B, 51) → local rotations (B, 22, 4)."""
         w = self._w
-        x = np.asarray(features, dtype=np.float64)
+        x = np.asarray(features, dtype=np.float64).T  # (51, B)
         h = x
         for (flat, bias, _k), d, buf in zip(self._layers, self._dil, self._buffers, strict=True):
             buf[:, :-1] = buf[:, 1:]
             buf[:, -1] = h
-            h = _lrelu(flat @ buf[:, ::d].ravel() + bias)
+            taps = buf[:, ::d]
+            h = _lrelu(flat @ taps.reshape(-1, taps.shape[-1]) + bias)
         self._count += 1
         codes = [h]
         for enc, total in zip((w.skeleton, w.view), self._sums, strict=True):
             total += _lrelu(_pointwise(_lrelu(_pointwise(x, enc[0])), enc[1]))
             codes.append(_pointwise(total / self._count, enc[2]))
         z = np.concatenate(codes)
-        out = _pointwise(_lrelu(_pointwise(z, w.head[0])), w.head[1])
-        return rotation_6d_to_quat(out.reshape(_J, 6))
+        out = _pointwise(_lrelu(_pointwise(z, w.head[0])), w.head[1]).T  # (B, 22·6)
+        return rotation_6d_to_quat(out.reshape(-1, _J, 6))
+
+    def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
+        """COCO-17 pixels (B, 17, 2) and visibility (B, 17) → (B, 22, 4)."""
+        return self.step_features(self._normalizer.step(xy, valid))
+
+
+class Agnostic2DStep:
+    """The causal model one frame at a time: ``step(xy (17, 2), valid (17,)) → (22, 4)``."""
+
+    def __init__(self, weights: Agnostic2DWeights) -> None:
+        self._steps = _StreamSteps(weights, 1)
+
+    def reset(self) -> None:
+        self._steps.reset()
+
+    def step_features(self, features: FloatArray) -> FloatArray:
+        """One frame's features (51,) → local rotations (22, 4)."""
+        return self._steps.step_features(np.asarray(features, dtype=np.float64)[None])[0]
 
     def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
         """COCO-17 pixels (17, 2) (NaN where invalid) and visibility (17,) → (22, 4)."""
         v = np.asarray(valid, dtype=bool).reshape(1, NUM_KEYPOINTS)
-        feats = self._normalizer.step(np.asarray(xy, dtype=np.float64)[None], v)[0]
-        return self.step_features(feats)
+        return self._steps.step(np.asarray(xy, dtype=np.float64)[None], v)[0]
 
 
 class MirrorAveragedStep:
-    """:class:`Agnostic2DStep` on the image and on its mirror, answers averaged (the causal
-    twin of ``run_clip(causal=True, mirror_average=True)``)."""
+    """The causal step on the image and on its mirror (two streams, one product per layer),
+    answers averaged: the frame-by-frame twin of ``run_clip(causal=True,
+    mirror_average=True)``."""
 
     def __init__(self, weights: Agnostic2DWeights) -> None:
-        self._direct = Agnostic2DStep(weights)
-        self._mirrored = Agnostic2DStep(weights)
+        self._steps = _StreamSteps(weights, 2)
 
     def reset(self) -> None:
-        self._direct.reset()
-        self._mirrored.reset()
+        self._steps.reset()
 
     def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
         """COCO-17 pixels (17, 2) (NaN where invalid) and visibility (17,) → (22, 4)."""
         p = np.asarray(xy, dtype=np.float64)
         v = np.asarray(valid, dtype=bool)
         flipped, flipped_valid = mirror_image(p, v)
-        return average_with_mirrored(
-            self._direct.step(p, v), self._mirrored.step(flipped, flipped_valid)
-        )
+        both = self._steps.step(np.stack([p, flipped]), np.stack([v, flipped_valid]))
+        return average_with_mirrored(both[0], both[1])
 
 
 def save_agnostic2d(model: Agnostic2DRuntime, path: str | os.PathLike[str]) -> Path:
