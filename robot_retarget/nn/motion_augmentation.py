@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_retarget.array_types import FloatArray
+from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.nn.dataset import Clip
 from robot_retarget.skeleton.mirror import mirror_offsets, mirror_points, mirror_rotations
 
@@ -45,20 +45,6 @@ class MotionAugmentation:
         return frames if speed == 1.0 else math.ceil((frames - 1) * speed) + 1
 
 
-def resample(values: FloatArray, times: FloatArray, *, quaternions: bool) -> FloatArray:
-    """``values`` (T, …) at fractional frame ``times`` (N,): linear, or normalised linear
-    (nlerp, hemisphere-aligned) for quaternions (…, 4)."""
-    lo = np.clip(np.floor(times).astype(np.int64), 0, len(values) - 1)
-    hi = np.minimum(lo + 1, len(values) - 1)
-    w = (times - lo).reshape((-1,) + (1,) * (values.ndim - 1))
-    a, b = values[lo], values[hi]
-    if not quaternions:
-        return np.asarray(a + (b - a) * w)
-    b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
-    q = a + (b - a) * w
-    return np.asarray(q / np.linalg.norm(q, axis=-1, keepdims=True))
-
-
 def augmented_window(
     clip: Clip, frames: int, rng: np.random.Generator, augmentation: MotionAugmentation
 ) -> Clip:
@@ -70,9 +56,11 @@ def augmented_window(
     if clip.num_frames < need:
         raise ValueError(f"{clip.name}: {clip.num_frames} frames, a window needs {need}")
     start = int(rng.integers(0, clip.num_frames - need + 1))
-    times = np.arange(frames, dtype=np.float64) * speed
-    quats = resample(clip.local_quats[start : start + need], times, quaternions=True)
-    root = resample(clip.root_pos[start : start + need], times, quaternions=False)
+    sl = slice(start, start + need)
+    # Played ``speed`` times faster: the same span resampled at fps / speed (slerp, lerp).
+    played = HumanMotion(clip.skeleton, clip.local_quats[sl], clip.root_pos[sl], clip.fps)
+    played = played.resample(clip.fps / speed)
+    quats, root = played.local_quats[:frames], played.root_pos[:frames]
     offsets = clip.offsets
     if rng.random() < augmentation.mirror_probability:
         quats, root, offsets = mirror_rotations(quats), mirror_points(root), mirror_offsets(offsets)

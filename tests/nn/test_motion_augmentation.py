@@ -13,11 +13,7 @@ from hypothesis import strategies as st
 from robot_retarget.cli.train_cmd import TrainArgumentError, _motion_augmentation
 from robot_retarget.nn.agnostic2d_training import TwoViewSampler
 from robot_retarget.nn.dataset import Clip, MotionDataset
-from robot_retarget.nn.motion_augmentation import (
-    MotionAugmentation,
-    augmented_window,
-    resample,
-)
+from robot_retarget.nn.motion_augmentation import MotionAugmentation, augmented_window
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, default_canonical_skeleton
 from robot_retarget.skeleton.mirror import mirror_rotations
 
@@ -60,7 +56,7 @@ def test_a_mirrored_window_is_the_mirrored_slice() -> None:
 @given(st.floats(0.5, 2.0), st.integers(0, 1000))
 def test_a_faster_window_moves_faster_by_that_factor(speed: float, seed: int) -> None:
     """Constant-rate joints and a constant-velocity root: resampled at speed s, every frame
-    step is s times the clip's (nlerp of a constant-rate rotation stays on its great circle)."""
+    step is s times the clip's (slerp of a constant-rate rotation stays on its great circle)."""
     clip = _clip(200)
     aug = MotionAugmentation(0.0, (speed, speed))
     w = augmented_window(clip, 50, np.random.default_rng(seed), aug)
@@ -70,16 +66,22 @@ def test_a_faster_window_moves_faster_by_that_factor(speed: float, seed: int) ->
     np.testing.assert_allclose(np.linalg.norm(w.local_quats, axis=-1), 1.0, atol=1e-12)
     step = np.abs(np.sum(w.local_quats[1:] * w.local_quats[:-1], axis=-1))
     base = np.abs(np.sum(clip.local_quats[1:] * clip.local_quats[:-1], axis=-1))
-    # rotation angle per frame, from |cos(θ/2)|: the clip's rate × speed, to nlerp's accuracy
+    # rotation angle per frame, from |cos(θ/2)|: the clip's rate × speed
     got = 2 * np.arccos(np.clip(step, -1, 1)).mean(axis=0)
     want = 2 * np.arccos(np.clip(base, -1, 1)).mean(axis=0) * speed
     np.testing.assert_allclose(got, want, rtol=0.02, atol=1e-6)
 
 
-def test_resample_aligns_quaternion_hemispheres() -> None:
-    a = np.array([[1.0, 0.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0]])  # the same rotation, two signs
-    out = resample(a, np.array([0.5]), quaternions=True)
-    np.testing.assert_allclose(np.abs(out[0, 0]), 1.0)
+def test_a_resampled_window_ignores_quaternion_signs() -> None:
+    """q and −q are one rotation: a clip whose signs flip every frame plays as the smooth one."""
+    clip = _clip(200)
+    flipped = np.array(clip.local_quats)
+    flipped[1::2] *= -1.0
+    signed = dataclasses.replace(clip, local_quats=flipped)
+    aug = MotionAugmentation(0.0, (1.3, 1.3))
+    a = augmented_window(clip, 50, np.random.default_rng(9), aug)
+    b = augmented_window(signed, 50, np.random.default_rng(9), aug)
+    np.testing.assert_allclose(np.abs(np.sum(a.local_quats * b.local_quats, axis=-1)), 1.0)
 
 
 def test_both_views_of_a_window_see_the_same_augmented_motion() -> None:
