@@ -120,6 +120,7 @@ class Scorer:
         self.config = config
         self.body = RobotBodyModel(config)
         self.rate = float(config.control_rate_hz)
+        self.eval_fps = eval_fps
         self.stride = max(1, round(self.rate / eval_fps))
 
     def score(
@@ -150,7 +151,7 @@ class Scorer:
         """The keypoint model's own error: the lifted performer's segments against the truth's,
         each in its own body frame, at the evaluation rate (no robot, so no violations)."""
         rate = float(lifted.fps)
-        stride = max(1, round(rate * self.stride / self.rate))
+        stride = max(1, round(rate / self.eval_fps))
         truth_pos = truth.resample(rate).positions()
         lifted_pos = lifted.positions()
         n = min(truth_pos.shape[0], lifted_pos.shape[0])

@@ -85,7 +85,7 @@ class KeypointTrainConfig:
     model_config: dict[str, Any] = field(default_factory=dict)
     max_frames: int | None = None
     cache_dir: str | None = None
-    augment: MotionAugmentation = field(default_factory=lambda: MotionAugmentation())
+    augment: MotionAugmentation = field(default_factory=MotionAugmentation)
     device: str = "cpu"  # "cuda" where a GPU is lent; batches are still rendered on the CPU
     loader_workers: int = 0  # processes rendering batches ahead of the training step
 

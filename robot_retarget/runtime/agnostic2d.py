@@ -3,7 +3,8 @@
 Same arithmetic as the torch model (robot_retarget.nn.models.agnostic2d; tested to float32
 rounding): whole clips with :meth:`Agnostic2DRuntime.run_clip` (``causal=False`` pools the
 static encoders over the whole clip: ``convert``), and one frame at a time with
-:class:`Agnostic2DStep` (causal: ``stream``). Both take COCO-17 keypoints with their visibility
+:class:`MirrorAveragedStep` (causal, the image and its mirror: ``stream``) or
+:class:`Agnostic2DStep` (the image alone). Both take COCO-17 keypoints with their visibility
 and return the 22 canonical local rotations (w-x-y-z), the root's in the camera's heading frame.
 
 File format (``.npz``, written by ``train --model agnostic2d``): one array per weight under a
@@ -187,7 +188,8 @@ class Agnostic2DRuntime:
 
         ``mirror_average``: also run the left-right mirrored image and average its mirrored
         answer with the direct one (test-time augmentation; ``convert`` uses it: 9.4° → 8.9°
-        lifted-pose error on validation clips). The result is exactly mirror-symmetric."""
+        lifted-pose error on validation clips, and ``stream`` through :meth:`online`). The
+        result is exactly mirror-symmetric."""
         v = np.asarray(valid, dtype=bool)
         p = np.asarray(xy, dtype=np.float64)
         feats = normalize_sequences(p[None], v[None])[0]

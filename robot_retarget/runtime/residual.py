@@ -150,10 +150,10 @@ class FastResidualRetargeter:
 
 
 def _denoiser_layers(w: ResidualWeights, history: int) -> list[F32Array]:
-    """The denoiser's layers as right-multiplied float32 matrices (as the torch model; half
-    the time of float64) on rows ``[features, one-hot]``: the first layer's bias joins the
-    one-hot rows (they sum to 1) and a column carries a constant 1 through the hidden layers
-    for the next biases."""
+    """The denoiser's layers as right-multiplied float32 matrices (as the torch model; 17 µs
+    against 22 µs in float64 with one BLAS thread) on rows ``[features, one-hot]``: the first
+    layer's bias joins the one-hot rows (they sum to 1) and a column carries a constant 1
+    through the hidden layers for the next biases."""
     (d0, e0), *rest = w.denoiser_layers
     n_feat = 4 * history + 1
     first = np.zeros((d0.shape[1], d0.shape[0] + 1))
