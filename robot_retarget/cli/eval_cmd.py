@@ -10,6 +10,7 @@ canonical skeleton, and prints one table row per model (robot_retarget.evaluatio
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 
@@ -49,6 +50,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
+    parser.add_argument(
+        "--native-input",
+        action="store_true",
+        help="also score skeleton-aware models (san) reading each clip on its file's own "
+        "skeleton, one more row each",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -65,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
         robot_skeletons,
     )
     from robot_retarget.nn.inference import DEFAULT_MODEL, load_model, shipped_checkpoints
+    from robot_retarget.nn.models.san import SAN
 
     names = args.model or ["copy", "copy-scaled"] + (
         [DEFAULT_MODEL] if DEFAULT_MODEL in shipped_checkpoints() else []
@@ -100,6 +108,9 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         results.append(evaluate(m, val.clips, robots, settings))
+        if args.native_input and isinstance(m.model, SAN):
+            native = dataclasses.replace(settings, native_input=True)
+            results.append(evaluate(m, val.clips, robots, native))
     if args.json:
         print(
             json.dumps(

@@ -54,7 +54,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         required=True,
-        choices=("nkn", "pmnet", "residual", "tdcn", "agnostic2d"),
+        choices=("nkn", "pmnet", "residual", "tdcn", "san", "agnostic2d"),
         help="network (agnostic2d: the 2D keypoint model, robot_retarget.nn.agnostic2d_training)",
     )
     add_data_argument(parser)

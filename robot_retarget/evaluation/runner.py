@@ -63,6 +63,9 @@ class EvalSettings:
     noise_sigma_frac: float = NOISE_SIGMA_FRAC
     zero_prob: float = ZERO_PROB
     twist_alpha_rad: float = metrics.TWIST_ALPHA_RAD
+    # Feed skeleton-aware models each clip on its file's own skeleton (Clip.native) instead
+    # of the canonical joints (A → A and A → B; cycles and denoising stay canonical).
+    native_input: bool = False
 
 
 @dataclass(frozen=True)
@@ -154,7 +157,12 @@ def evaluate(
         src_height = clip.height_m
         contacts = foot_contacts(src_pos, clip.fps, leg_length(src_skel))
 
-        rq, rr = retarget_clip(model, clip.local_quats, clip.root_pos, clip.offsets, clip.offsets)
+        native = clip.native if cfg.native_input else None
+        if cfg.native_input and native is None:
+            raise ValueError(f"clip {clip.name} has no view on its own skeleton (native pose)")
+        rq, rr = retarget_clip(
+            model, clip.local_quats, clip.root_pos, clip.offsets, clip.offsets, native=native
+        )
         recon_pos = forward_kinematics(src_skel, rq, rr)[0]
         for kind in ("all", "human"):
             means[kind].add("recon", metrics.position_error(recon_pos, src_pos, src_height), t)
@@ -170,7 +178,9 @@ def evaluate(
         for kind, tgt in _targets(clip, clips, robot_offsets):
             pairs += 1
             tgt_skel = _skeleton(tgt)
-            bq, br = retarget_clip(model, clip.local_quats, clip.root_pos, clip.offsets, tgt)
+            bq, br = retarget_clip(
+                model, clip.local_quats, clip.root_pos, clip.offsets, tgt, native=native
+            )
             tgt_pos = forward_kinematics(tgt_skel, bq, br)[0]
             cq, cr = retarget_clip(model, bq, br, tgt, clip.offsets)
             nq, nr = retarget_clip(model, noisy_q, noisy_root, clip.offsets, tgt)
@@ -193,7 +203,7 @@ def evaluate(
         if progress is not None:
             progress(index + 1, len(clips))
     return EvalResult(
-        model=model.name,
+        model=f"{model.name} (file's skeleton)" if cfg.native_input else model.name,
         metrics=means["all"].result(),
         by_target={k: means[k].result() for k in ("human", "robot")},
         clips=len(clips),
@@ -218,6 +228,7 @@ def _head(clip: Clip, max_frames: int) -> Clip:
         offsets=clip.offsets,
         fps=clip.fps,
         height_m=clip.height_m,
+        native=None if clip.native is None else clip.native.frames(0, max_frames),
     )
 
 

@@ -28,10 +28,12 @@ validation set (walking, arm work, turning) also occurs in training (02, 05, 07,
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -39,8 +41,11 @@ import torch
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError, RetargetError
 from robot_retarget.motion import HumanMotion, load_motion
+from robot_retarget.motion.bvh import read_bvh
+from robot_retarget.motion.native_pose import NativePose, native_pose
 from robot_retarget.nn.features import MotionFeatures, compute_features
 from robot_retarget.nn.models.batch import RetargetBatch
+from robot_retarget.skeleton.armatures import ArmatureTopology, TopologyError
 from robot_retarget.skeleton.canonical import (
     CANONICAL_JOINTS,
     CANONICAL_PARENTS,
@@ -55,7 +60,7 @@ DEFAULT_VALIDATION_SUBJECTS: tuple[str, ...] = ("06", "08", "12")
 DEFAULT_ROBOTS: tuple[str, ...] = ("op3", "poppy_humanoid")
 
 # Bumped whenever what goes into the cache changes, so stale caches are never read.
-_CACHE_VERSION = 2  # 2: motions relative to the canonical T-pose (skeleton/rest_pose.py)
+_CACHE_VERSION = 3  # 2: motions relative to the canonical T-pose; 3: native poses (SAN)
 
 _NUM_JOINTS = len(CANONICAL_JOINTS)
 
@@ -71,7 +76,8 @@ class DatasetError(RetargetError):
 @dataclass(frozen=True, eq=False)
 class Clip:
     """One motion on the canonical skeleton: ``local_quats`` (T, 22, 4), ``root_pos`` (T, 3) m,
-    ``offsets`` (22, 3) m (the performer's rest skeleton), at ``fps``."""
+    ``offsets`` (22, 3) m (the performer's rest skeleton), at ``fps``; ``native`` the same
+    frames on the file's own skeleton (robot_retarget.motion.native_pose), for SAN."""
 
     name: str
     subject: str
@@ -80,6 +86,7 @@ class Clip:
     offsets: FloatArray = field(repr=False)
     fps: float
     height_m: float
+    native: NativePose | None = field(default=None, repr=False)
 
     @property
     def num_frames(self) -> int:
@@ -220,7 +227,7 @@ def load_dataset(
     if use_cache and cache_file.is_file():
         try:
             return _read_cache(cache_file, digest, float(fps))
-        except (OSError, KeyError, ValueError):
+        except (OSError, KeyError, ValueError, TopologyError):
             pass  # unreadable or foreign cache: rebuild it below
     clips = tuple(_load_clip(p, root, fps, max_frames) for p in paths)
     dataset = MotionDataset(clips, digest, float(fps))
@@ -247,7 +254,13 @@ def _load_clip(path: Path, root: Path, fps: float, max_frames: int | None) -> Cl
         motion = load_motion(path, max_frames=max_frames)
     except MotionFormatError as exc:
         raise DatasetError(f"cannot load a clip of the data set: {exc}", path=path) from exc
+    native: NativePose | None
+    try:
+        native = native_pose(read_bvh(path), motion)
+    except TopologyError:
+        native = None  # no skeleton-aware view of this file; every other model still uses it
     if abs(motion.fps - fps) > 1e-3 * fps:
+        native = None if native is None else native.resample(motion.fps, fps)
         motion = motion.resample(fps)
     return Clip(
         name=path.relative_to(root).as_posix(),
@@ -257,6 +270,7 @@ def _load_clip(path: Path, root: Path, fps: float, max_frames: int | None) -> Cl
         offsets=np.asarray(motion.skeleton.offsets, dtype=np.float64),
         fps=float(motion.fps),
         height_m=float(motion.height_m),
+        native=native,
     )
 
 
@@ -264,8 +278,7 @@ def _write_cache(path: Path, dataset: MotionDataset) -> None:
     lengths = np.array([c.num_frames for c in dataset.clips], dtype=np.int64)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
-    np.savez(
-        tmp,
+    arrays: dict[str, Any] = dict(
         names=np.array([c.name for c in dataset.clips]),
         subjects=np.array([c.subject for c in dataset.clips]),
         lengths=lengths,
@@ -275,7 +288,9 @@ def _write_cache(path: Path, dataset: MotionDataset) -> None:
         heights=np.array([c.height_m for c in dataset.clips]),
         fps=np.array([c.fps for c in dataset.clips]),
         data_hash=np.array(dataset.data_hash),
+        **_native_arrays(dataset.clips),
     )
+    np.savez(tmp, **arrays)
     os.replace(tmp, path)  # atomic: a concurrent reader never sees half a file
 
 
@@ -294,10 +309,29 @@ def _read_cache(path: Path, digest: str, fps: float) -> MotionDataset:
                 offsets=z["offsets"][i],
                 fps=float(z["fps"][i]),
                 height_m=float(z["heights"][i]),
+                native=_read_native(z, i),
             )
             for i in range(len(z["lengths"]))
         )
     return MotionDataset(clips, digest, fps)
+
+
+def _native_arrays(clips: Sequence[Clip]) -> dict[str, np.ndarray]:
+    out: dict[str, np.ndarray] = {}
+    for i, c in enumerate(clips):
+        if c.native is not None:
+            out[f"native_topology_{i}"] = np.array(json.dumps(c.native.topology.spec()))
+            out[f"native_quats_{i}"] = c.native.local_quats
+            out[f"native_offsets_{i}"] = c.native.offsets
+    return out
+
+
+def _read_native(z: Mapping[str, np.ndarray], i: int) -> NativePose | None:
+    key = f"native_topology_{i}"
+    if key not in z:
+        return None
+    topology = ArmatureTopology.from_spec(json.loads(str(z[key])))
+    return NativePose(topology, z[f"native_quats_{i}"], z[f"native_offsets_{i}"])
 
 
 def robot_skeletons(names: Sequence[str] = DEFAULT_ROBOTS) -> dict[str, FloatArray]:
@@ -357,6 +391,8 @@ class _Window:
     quats: FloatArray
     root: FloatArray
     offsets: FloatArray
+    native_quats: FloatArray | None = None
+    native_offsets: FloatArray | None = None
 
 
 class WindowSampler:
@@ -375,6 +411,7 @@ class WindowSampler:
         robot_offsets: Mapping[str, FloatArray] | None = None,
         augmentation: Augmentation | None = None,
         real_motion: bool = False,
+        native: bool = False,
         seed: int = 0,
     ) -> None:
         self.clips = [c for c in dataset.clips if c.num_frames >= window_frames]
@@ -392,6 +429,21 @@ class WindowSampler:
         self.robot_skeletons = list((robot_offsets or {}).values())
         starts = np.array([c.num_frames - window_frames + 1 for c in self.clips], dtype=np.float64)
         self._clip_p = starts / starts.sum()  # every window equally likely
+        self.native = native
+        self._native_groups: list[tuple[str, np.ndarray]] = []
+        if native:
+            groups: dict[str, list[int]] = {}
+            for i, c in enumerate(self.clips):
+                if c.native is not None:
+                    groups.setdefault(c.native.topology.name, []).append(i)
+            if not groups:
+                raise DatasetError(
+                    "no clip has a view on its own skeleton (native pose), which SAN's "
+                    "encoders read; its BVH files' end-effectors could not be named"
+                )
+            self._native_groups = [(k, np.array(v)) for k, v in sorted(groups.items())]
+            weight = np.array([starts[idx].sum() for _, idx in self._native_groups])
+            self._group_p = weight / weight.sum()
 
     def _window(self, rng: np.random.Generator) -> tuple[Clip, int]:
         clip = self.clips[int(rng.choice(len(self.clips), p=self._clip_p))]
@@ -421,10 +473,39 @@ class WindowSampler:
         scale = leg_length(target) / leg_length(clip.offsets)
         return _Window(clip.local_quats[sl], clip.root_pos[sl] * scale, target)
 
+    def _native_source(self, rng: np.random.Generator, pool: np.ndarray) -> _Window:
+        """A window of one of the clips ``pool``, with its native pose; the source is only
+        scaled as a whole (its joints' own bones are not the canonical ones)."""
+        p = self._clip_p[pool] / self._clip_p[pool].sum()
+        clip = self.clips[int(pool[int(rng.choice(len(pool), p=p))])]
+        start = int(rng.integers(0, clip.num_frames - self.window_frames + 1))
+        sl = slice(start, start + self.window_frames)
+        native = clip.native
+        assert native is not None  # the pool holds clips with a native pose only
+        scale = 1.0
+        if rng.random() < self.augmentation.p_augment_source:
+            scale = float(rng.uniform(*self.augmentation.global_scale))
+        return _Window(
+            clip.local_quats[sl],
+            clip.root_pos[sl] * scale,
+            clip.offsets * scale,
+            native.local_quats[sl],
+            native.offsets * scale,
+        )
+
     def sample(self, step: int, stream: int = 0) -> RetargetBatch:
-        """Batch number ``step`` ≥ 0 of random stream ``stream`` (float32 tensors, CPU)."""
+        """Batch number ``step`` ≥ 0 of random stream ``stream`` (float32 tensors, CPU).
+        With ``native``, every batch's clips share one native skeleton, drawn in proportion to
+        its windows, and the batch carries their native poses."""
         rng = np.random.default_rng([self.seed, stream, step])
-        sources = [self._source(rng) for _ in range(self.batch_size)]
+        domain: str | None = None
+        if self.native:
+            domain, pool = self._native_groups[
+                int(rng.choice(len(self._native_groups), p=self._group_p))
+            ]
+            sources = [self._native_source(rng, pool) for _ in range(self.batch_size)]
+        else:
+            sources = [self._source(rng) for _ in range(self.batch_size)]
         targets = [self._target(rng, s.offsets) for s in sources]
         reals = [self._real(rng, t) for t, _ in targets] if self.real_motion else None
 
@@ -439,7 +520,16 @@ class WindowSampler:
             same_skeleton=torch.tensor([same for _, same in targets], dtype=torch.bool),
             real_local_quats=None if reals is None else t32([r.quats for r in reals]),
             real_root_pos=None if reals is None else t32([r.root for r in reals]),
+            native_domain=domain,
+            native_quats=None if domain is None else t32([_native(s)[0] for s in sources]),
+            native_offsets=None if domain is None else t32([_native(s)[1] for s in sources]),
         )
+
+
+def _native(window: _Window) -> tuple[FloatArray, FloatArray]:
+    if window.native_quats is None or window.native_offsets is None:
+        raise ValueError("this window was drawn without its native pose")
+    return window.native_quats, window.native_offsets
 
 
 def fit_features(sampler: WindowSampler, batches: int = 8) -> tuple[MotionFeatures, torch.Tensor]:

@@ -24,9 +24,11 @@ import torch
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.motion import HumanMotion
+from robot_retarget.motion.native_pose import NativePose
 from robot_retarget.nn.checkpoint import load_checkpoint
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.registry import build_model
+from robot_retarget.nn.models.san import SAN
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 from robot_retarget.skeleton.skeleton import Skeleton
 
@@ -108,6 +110,24 @@ def load_model(name_or_path: str | Path = DEFAULT_MODEL, *, device: str = "cpu")
     )
 
 
+def native_domain(net: RetargetModel, native: NativePose, frames: int) -> str:
+    """The domain of ``net`` (a SAN) that reads ``native``'s skeleton; ValueError otherwise."""
+    if not isinstance(net, SAN):
+        raise ValueError(
+            f"model {net.name!r} reads canonical joints only; a clip on its own skeleton is "
+            "read by skeleton-aware models (san)"
+        )
+    domain = net.domain_of(native.topology)
+    if domain is None:
+        raise ValueError(
+            f"this SAN has no encoder for skeleton {native.topology.name!r}; it was trained on "
+            f"{list(net.domain_names)} (train one on data with that skeleton)"
+        )
+    if native.num_frames != frames:
+        raise ValueError(f"native pose has {native.num_frames} frames, the clip {frames}")
+    return domain
+
+
 def _model_of(model: LoadedModel | RetargetModel) -> RetargetModel:
     return model.model if isinstance(model, LoadedModel) else model
 
@@ -128,9 +148,14 @@ def retarget_clip(
     root_pos: npt.ArrayLike,
     source_offsets: npt.ArrayLike,
     target_offsets: npt.ArrayLike,
+    *,
+    native: NativePose | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Retarget one whole clip: (T, 22, 4), (T, 3), (22, 3), (22, 3) → target rotations
-    (T, 22, 4) unit and root positions (T, 3) metres (float64 numpy)."""
+    (T, 22, 4) unit and root positions (T, 3) metres (float64 numpy).
+
+    ``native``: the same frames on the file's own skeleton, read by a skeleton-aware model
+    (SAN) through that skeleton's own encoder; other models refuse it."""
     net = _model_of(model)
     q = np.asarray(local_quats, dtype=np.float64)
     root = np.asarray(root_pos, dtype=np.float64)
@@ -146,9 +171,21 @@ def retarget_clip(
     def tensor(a: FloatArray) -> torch.Tensor:
         return torch.tensor(a[None], device=dev)
 
+    domain = None if native is None else native_domain(net, native, t)
     net.eval()
     with torch.inference_mode():
-        out = net(tensor(q), tensor(root), tensor(src), tensor(tgt))
+        if native is not None and domain is not None and isinstance(net, SAN):
+            out = net.forward_native(
+                domain,
+                tensor(q),
+                tensor(root),
+                tensor(src),
+                tensor(native.local_quats),
+                tensor(native.offsets),
+                tensor(tgt),
+            )
+        else:
+            out = net(tensor(q), tensor(root), tensor(src), tensor(tgt))
         quats = out.local_quats[0].double().cpu().numpy()
         pos = out.root_pos[0].double().cpu().numpy()
     return quats / np.linalg.norm(quats, axis=-1, keepdims=True), pos

@@ -22,7 +22,7 @@ import torch
 from torch import nn
 from torch.nn import functional as nnf
 
-from robot_retarget.nn.features import integrate_root, skeleton_height
+from robot_retarget.nn.features import MotionFeatures, integrate_root, skeleton_height
 
 Tensor = torch.Tensor
 
@@ -81,3 +81,26 @@ class PatchDiscriminator(nn.Module):
             x = self.dropout(nnf.leaky_relu(conv(x), 0.2))
         scores: Tensor = self.out(x)
         return scores[:, 0]
+
+
+def patch_discriminator_step(
+    disc: PatchDiscriminator,
+    optimizer: torch.optim.Optimizer,
+    real: MotionFeatures,
+    real_offsets: Tensor,
+    fake: MotionFeatures,
+    fake_offsets: Tensor,
+    mask: Tensor,
+) -> dict[str, float]:
+    """One least-squares update on the ``mask``ed samples: ``real`` motion scores 1, the
+    generator's ``fake`` (detached here) 0. Returns the loss and the mean fake score."""
+    optimizer.zero_grad(set_to_none=True)
+    real_scores = disc(patch_inputs(real.local_pos, real.root_vel, real_offsets))
+    fake_scores = disc(patch_inputs(fake.local_pos.detach(), fake.root_vel.detach(), fake_offsets))
+    loss = (((real_scores - 1.0) ** 2).mean(-1) + (fake_scores**2).mean(-1))[mask].mean()
+    loss.backward()
+    optimizer.step()
+    return {
+        "discriminator": float(loss.detach()),
+        "disc_fake_score": float(fake_scores.detach()[mask].mean()),
+    }

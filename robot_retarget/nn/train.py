@@ -78,7 +78,7 @@ from robot_retarget.nn.models.training import (
 from robot_retarget.nn.retarget_losses import bone_direction_loss, contact_loss, effector_loss
 from robot_retarget.nn.train_log import TrainLog
 
-TRAINABLE_MODELS: tuple[str, ...] = ("nkn", "pmnet", "residual", "tdcn")
+TRAINABLE_MODELS: tuple[str, ...] = ("nkn", "pmnet", "residual", "tdcn", "san")
 
 
 @dataclass(frozen=True)
@@ -343,6 +343,7 @@ def train(
         batch_size=config.batch_size,
         robot_offsets=robots,
         real_motion=config.model == "nkn",
+        native=config.model == "san",
         seed=config.seed,
     )
     # Validation: real skeletons only (other validation subjects and robots), no B = A.
@@ -364,7 +365,12 @@ def train(
         ]
 
     torch.manual_seed(config.seed)
-    model = build_model(config.model, **config.model_config)
+    model_config = dict(config.model_config)
+    if config.model == "san" and "domains" not in model_config:
+        # One encoder per skeleton topology of the data (validation subjects' included: a
+        # skeleton is not a performer, and an encoder for it must exist to score them).
+        model_config["domains"] = native_domains(dataset)
+    model = build_model(config.model, **model_config)
     disc = (
         build_discriminator(config.model, **config.discriminator_config)
         if has_discriminator(config.model)
@@ -489,6 +495,15 @@ def train(
     if not best_path.exists() or not val_batches:  # no validation ran: best is the last
         save(best_path, step, None)
     return TrainResult(out, best_path, last_path, step, best, train_set.data_hash)
+
+
+def native_domains(dataset: MotionDataset) -> dict[str, dict[str, Any]]:
+    """Topology specs of the clips' own skeletons, by name (SAN's source domains)."""
+    out: dict[str, dict[str, Any]] = {}
+    for c in dataset.clips:
+        if c.native is not None:
+            out.setdefault(c.native.topology.name, c.native.topology.spec())
+    return out
 
 
 def _exclude(dataset: MotionDataset, subjects: Sequence[str]) -> MotionDataset:

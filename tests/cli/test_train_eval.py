@@ -148,3 +148,29 @@ def test_eval_scores_a_whole_folder_of_other_performers(
     assert clips_scored([]) == 4
     assert clips_scored(["--val-subjects", "all"]) == 4
     assert clips_scored(["--val-subjects", "s1"]) == 2
+
+
+def test_san_trains_and_is_scored_on_the_files_own_skeletons(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out, cache = tmp_path / "runs" / "san", tmp_path / "cache"
+    args = [
+        "--model", "san", "--data", str(mocap), "--out", str(out), "--steps", "2",
+        "--batch-size", "4", "--window", "8", "--val-subjects", "s2", "--robots", "op3",
+        "--val-every", "2", "--checkpoint-every", "2", "--model-config", "channels=[4,8]",
+        "--model-config", "static_channels=2", "--model-config", "kernel_size=3",
+        "--disc-config", "channels=8", "--disc-config", "dilations=[1,2]",
+        "--cache-dir", str(cache), "--threads", "1",
+    ]  # fmt: skip
+    assert _run(train_cmd, args) == 0
+    capsys.readouterr()
+    eval_args = ["--data", str(mocap), "--val-subjects", "s2,s3", "--cache-dir", str(cache)]
+    code = _run(
+        eval_cmd,
+        ["--model", str(out), "--model", "copy", "--native-input", "--json", *eval_args],
+    )
+    assert code == 0
+    rows = [r["model"] for r in json.loads(capsys.readouterr().out)["results"]]
+    best = str(out / "best.pt")
+    # The SAN twice (canonical joints, then each file's own), copy once: it has no encoders.
+    assert rows == [best, f"{best} (file's skeleton)", "copy"]

@@ -151,10 +151,17 @@ class RetargetModel(nn.Module, ABC):
     ) -> RetargetOutput:
         """Retarget features (e.g. another model pass's output, as NKN's cycle does)."""
         pred = self.retarget(src, src_offsets, tgt_offsets)
+        return self.output(pred, init_root_pos, src.yaw[:, 0], tgt_offsets)
+
+    def output(
+        self, pred: Prediction, init_root_pos: Tensor, init_yaw: Tensor, tgt_offsets: Tensor
+    ) -> RetargetOutput:
+        """A prediction as a motion: root integrated from ``init_root_pos`` (B, 3) and heading
+        ``init_yaw`` (B,), local pose by FK on ``tgt_offsets`` unless the model gave it."""
         local_pos = pred.local_pos
         if local_pos is None:
             local_pos = local_positions(pred.local_quats, tgt_offsets, self.parents)
-        root_pos, yaw = integrate_root(pred.root_vel, init_root_pos, src.yaw[:, 0])
+        root_pos, yaw = integrate_root(pred.root_vel, init_root_pos, init_yaw)
         feats = MotionFeatures(
             local_pos=local_pos, root_vel=pred.root_vel, local_quats=pred.local_quats, yaw=yaw
         )

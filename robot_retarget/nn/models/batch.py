@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
+from typing import Any
 
 import torch
 
@@ -28,6 +29,10 @@ class RetargetBatch:
     same_skeleton: Tensor  # (B,) bool
     real_local_quats: Tensor | None = None  # (B, T, J, 4) on tgt_offsets
     real_root_pos: Tensor | None = None  # (B, T, 3)
+    # The same windows on the files' own skeleton, one topology per batch (SAN's encoders):
+    native_domain: str | None = None
+    native_quats: Tensor | None = None  # (B, T, A − 1, 4), robot_retarget.motion.native_pose
+    native_offsets: Tensor | None = None  # (B, A − 1, 3) m
 
     def __post_init__(self) -> None:
         if self.src_local_quats.ndim != 4:
@@ -48,13 +53,24 @@ class RetargetBatch:
                 raise ValueError("give both real_local_quats and real_root_pos, or neither")
             expected["real_local_quats"] = (self.real_local_quats, (b, t, j, 4))
             expected["real_root_pos"] = (self.real_root_pos, (b, t, 3))
+        native = (self.native_domain, self.native_quats, self.native_offsets)
+        if any(v is not None for v in native):
+            if (
+                self.native_domain is None
+                or self.native_quats is None
+                or self.native_offsets is None
+            ):
+                raise ValueError("give native_domain, native_quats and native_offsets, or none")
+            a = self.native_quats.shape[2] if self.native_quats.ndim == 4 else -1
+            expected["native_quats"] = (self.native_quats, (b, t, a, 4))
+            expected["native_offsets"] = (self.native_offsets, (b, a, 3))
         for name, (value, shape) in expected.items():
             if tuple(value.shape) != shape:
                 raise ValueError(f"{name} must have shape {shape}, got {tuple(value.shape)}")
 
     def to(self, device: torch.device | str) -> RetargetBatch:
         """The same batch with every tensor on ``device``."""
-        moved = {
+        moved: dict[str, Any] = {
             f.name: value.to(device)
             for f in fields(self)
             if isinstance(value := getattr(self, f.name), torch.Tensor)

@@ -20,11 +20,12 @@ from robot_retarget.nn.models.copy import CopyModel, CopyScaledModel
 from robot_retarget.nn.models.nkn import NKN
 from robot_retarget.nn.models.pmnet import PMnet
 from robot_retarget.nn.models.residual import ResidualRetargeter
+from robot_retarget.nn.models.san import SAN
 from robot_retarget.nn.models.tdcn import TDCN
 from robot_retarget.nn.patch_discriminator import PatchDiscriminator
 
 MODELS: dict[str, type[RetargetModel]] = {
-    cls.name: cls for cls in (CopyModel, CopyScaledModel, NKN, PMnet, ResidualRetargeter, TDCN)
+    cls.name: cls for cls in (CopyModel, CopyScaledModel, NKN, PMnet, ResidualRetargeter, TDCN, SAN)
 }
 
 # Models of 2D keypoints (not RetargetModels: their input is pixels, not rotations); trained
@@ -35,6 +36,7 @@ DISCRIMINATORS: dict[str, type[nn.Module]] = {
     NKN.name: NKNDiscriminator,
     PMnet.name: PMnetDiscriminator,
     TDCN.name: PatchDiscriminator,
+    SAN.name: PatchDiscriminator,
 }
 
 
@@ -75,7 +77,7 @@ def build_model(name: str, **config: Any) -> RetargetModel:
 
 
 def has_discriminator(model_name: str) -> bool:
-    """Whether ``model_name`` is trained against a discriminator (NKN, PMnet, TDCN)."""
+    """Whether ``model_name`` is trained against a discriminator (NKN, PMnet, TDCN, SAN)."""
     return model_name in DISCRIMINATORS
 
 

@@ -50,7 +50,11 @@ from robot_retarget.nn.features import (
 from robot_retarget.nn.losses import TWIST_ALPHA_RAD, twist_loss
 from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.tdcn import TDCN
-from robot_retarget.nn.patch_discriminator import PatchDiscriminator, patch_inputs
+from robot_retarget.nn.patch_discriminator import (
+    PatchDiscriminator,
+    patch_discriminator_step,
+    patch_inputs,
+)
 from robot_retarget.nn.retarget_losses import (
     bone_direction_loss,
     contact_loss,
@@ -232,12 +236,5 @@ def tdcn_training_step(
     other = ~same
     d_opt = optimizers.discriminator
     if d_opt is not None and bool(other.any()):
-        d_opt.zero_grad(set_to_none=True)
-        real = disc(patch_inputs(src.local_pos, src.root_vel, src_off))
-        fake = disc(patch_inputs(fb.local_pos.detach(), fb.root_vel.detach(), tgt_off))
-        d_loss = (((real - 1.0) ** 2).mean(-1) + (fake**2).mean(-1))[other].mean()
-        d_loss.backward()
-        d_opt.step()
-        losses["discriminator"] = float(d_loss.detach())
-        losses["disc_fake_score"] = float(fake.detach()[other].mean())
+        losses.update(patch_discriminator_step(disc, d_opt, src, src_off, fb, tgt_off, other))
     return losses

@@ -59,6 +59,8 @@ from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.nkn import NKN
 from robot_retarget.nn.models.pmnet import PMnet
 from robot_retarget.nn.models.residual import ResidualRetargeter
+from robot_retarget.nn.models.san import SAN
+from robot_retarget.nn.models.san_training import SANLossWeights, san_training_step
 from robot_retarget.nn.models.tdcn import TDCN
 from robot_retarget.nn.models.tdcn_training import TDCNLossWeights, tdcn_training_step
 from robot_retarget.nn.patch_discriminator import PatchDiscriminator
@@ -371,7 +373,9 @@ def residual_training_step(
     }
 
 
-_W = TypeVar("_W", NKNLossWeights, PMnetLossWeights, ResidualLossWeights, TDCNLossWeights)
+_W = TypeVar(
+    "_W", NKNLossWeights, PMnetLossWeights, ResidualLossWeights, TDCNLossWeights, SANLossWeights
+)
 
 
 def loss_weights(defaults: _W, overrides: Mapping[str, float] | None) -> _W:
@@ -403,6 +407,8 @@ def check_loss_weights(model_name: str, overrides: Mapping[str, float] | None) -
         loss_weights(PMnetLossWeights(), overrides)
     elif model_name == "tdcn":
         loss_weights(TDCNLossWeights(), overrides)
+    elif model_name == "san":
+        loss_weights(SANLossWeights(), overrides)
     else:
         loss_weights(ResidualLossWeights(), overrides)
 
@@ -429,11 +435,14 @@ def training_step(
     if isinstance(model, TDCN) and isinstance(disc, PatchDiscriminator):
         w_tdcn = loss_weights(TDCNLossWeights(), weights)
         return tdcn_training_step(model, disc, batch, optimizers, w_tdcn, fps=fps)
+    if isinstance(model, SAN) and isinstance(disc, PatchDiscriminator):
+        w_san = loss_weights(SANLossWeights(), weights)
+        return san_training_step(model, disc, batch, optimizers, w_san, fps=fps)
     raise ValueError(
         f"no training step for model {type(model).__name__} with discriminator "
         f"{type(disc).__name__}; trainable pairs: NKN + NKNDiscriminator, PMnet + "
-        "PMnetDiscriminator, TDCN + PatchDiscriminator, residual without one (copy baselines "
-        "have nothing to train)"
+        "PMnetDiscriminator, TDCN or SAN + PatchDiscriminator, residual without one (copy "
+        "baselines have nothing to train)"
     )
 
 

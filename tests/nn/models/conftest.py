@@ -29,11 +29,13 @@ TINY_CONFIGS: dict[str, dict[str, object]] = {
         "root_filter_taps": 3,
     },
     "tdcn": {"channels": 8, "blocks": 2},
+    "san": {"channels": (4, 8), "static_channels": 2, "kernel_size": 3},
 }
 TINY_DISCRIMINATORS: dict[str, dict[str, object]] = {
     "nkn": {"channels": (8, 8, 8, 8)},
     "pmnet": {"channels": (4, 4, 4, 4)},
     "tdcn": {"channels": 8, "dilations": (1, 2)},
+    "san": {"channels": 8, "dilations": (1, 2)},
 }
 
 

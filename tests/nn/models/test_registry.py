@@ -17,7 +17,7 @@ from robot_retarget.nn.models.registry import (
 
 
 def test_names() -> None:
-    assert model_names() == ("copy", "copy-scaled", "nkn", "pmnet", "residual", "tdcn")
+    assert model_names() == ("copy", "copy-scaled", "nkn", "pmnet", "residual", "tdcn", "san")
     for name in model_names():
         assert build_model(name).name == name
 

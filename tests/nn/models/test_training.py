@@ -44,17 +44,24 @@ EXPECTED_KEYS = {
         "orientation",
         "discriminator",
     },
+    "san": {"total", "reconstruction", "effector", "latent", "adversarial", "discriminator"},
 }
 # The term each model learns first: NKN's cycle consistency, PMnet's pose reconstruction, the
 # residual model's supervised denoising.
-MAIN_TERM = {"nkn": "cycle", "pmnet": "reconstruction", "residual": "denoise", "tdcn": "cycle"}
+MAIN_TERM = {
+    "nkn": "cycle",
+    "pmnet": "reconstruction",
+    "residual": "denoise",
+    "tdcn": "cycle",
+    "san": "reconstruction",
+}
 
 
 def _disc(name: str, build: BuildDisc) -> torch.nn.Module | None:
     return None if name == "residual" else build(name)
 
 
-@pytest.mark.parametrize("name", ["nkn", "pmnet", "residual", "tdcn"])
+@pytest.mark.parametrize("name", ["nkn", "pmnet", "residual", "tdcn", "san"])
 def test_a_few_steps_reduce_the_loss(
     name: str, tiny_model: Build, tiny_discriminator: BuildDisc, batch: RetargetBatch
 ) -> None:
@@ -73,7 +80,7 @@ def test_a_few_steps_reduce_the_loss(
     assert history[-1]["total"] < history[0]["total"]
 
 
-@pytest.mark.parametrize("name", ["nkn", "pmnet", "residual", "tdcn"])
+@pytest.mark.parametrize("name", ["nkn", "pmnet", "residual", "tdcn", "san"])
 def test_steps_are_deterministic(
     name: str, tiny_model: Build, tiny_discriminator: BuildDisc, batch: RetargetBatch
 ) -> None:
