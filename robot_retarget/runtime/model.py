@@ -33,10 +33,11 @@ from robot_retarget.runtime.frame import check_offsets
 from robot_retarget.runtime.npz_file import read_runtime_npz, write_runtime_npz
 from robot_retarget.runtime.pmnet import FastPMnetRetargeter, PMnetWeights
 from robot_retarget.runtime.residual import FastResidualRetargeter, ResidualWeights
+from robot_retarget.runtime.san import FastSANRetargeter, SANWeights
 from robot_retarget.runtime.tdcn import FastTDCNRetargeter, TDCNWeights
 
 FORMAT_VERSION = 1
-Weights = ResidualWeights | PMnetWeights | TDCNWeights
+Weights = ResidualWeights | PMnetWeights | TDCNWeights | SANWeights
 
 
 class OnlineStep(Protocol):
@@ -72,6 +73,11 @@ def _tdcn(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
     return FastTDCNRetargeter(w, src, tgt)
 
 
+def _san(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+    assert isinstance(w, SANWeights)
+    return FastSANRetargeter(w, src, tgt)
+
+
 # architecture → (weights class or None, step factory)
 ARCHITECTURES: dict[
     str, tuple[type[Weights] | None, Callable[[Weights | None, FloatArray, FloatArray], OnlineStep]]
@@ -81,6 +87,7 @@ ARCHITECTURES: dict[
     "residual": (ResidualWeights, _residual),
     "pmnet": (PMnetWeights, _pmnet),
     "tdcn": (TDCNWeights, _tdcn),
+    "san": (SANWeights, _san),
 }
 
 

@@ -26,12 +26,11 @@ from robot_retarget.runtime.frame import (
     matrices,
     qmul,
 )
+from robot_retarget.runtime.ring_conv import Conv, RingConv, f32_conv
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 _J = len(CANONICAL_JOINTS)
 _SLOPE = 0.2
-
-Conv = tuple[FloatArray, FloatArray]  # kernel (out, in, k), bias (out,)
 
 
 @dataclass(frozen=True)
@@ -183,12 +182,12 @@ def run_clip(
     head = _Head(w, src, tgt)
     causal = w.causal
     x = head.inputs(pose, quats, vel).T.astype(np.float32)
-    h = _lrelu(_conv_clip(x, _f32(w.expand), 1, causal))
+    h = _lrelu(_conv_clip(x, f32_conv(w.expand), 1, causal))
     for d, dil, point in zip(w.dilations[1:], w.dilated, w.pointwise, strict=True):
-        inner = _lrelu(_conv_clip(h, _f32(dil), int(float(d)), causal))
-        h = h + _lrelu(_conv_clip(inner, _f32(point), 1, causal))
-    f = _lrelu(_conv_clip(h, _f32(w.features), 1, causal))
-    raw = _conv_clip(f, _f32(w.head), 1, causal).T.astype(np.float64)
+        inner = _lrelu(_conv_clip(h, f32_conv(dil), int(float(d)), causal))
+        h = h + _lrelu(_conv_clip(inner, f32_conv(point), 1, causal))
+    f = _lrelu(_conv_clip(h, f32_conv(w.features), 1, causal))
+    raw = _conv_clip(f, f32_conv(w.head), 1, causal).T.astype(np.float64)
     q_b, v_b = head.outputs(raw, quats, vel)
     stream = FrameStream()
     out_q = np.empty_like(q_b)
@@ -198,49 +197,6 @@ def run_clip(
         out_r[t], yaw = stream.integrate(v_b[t, :3], float(v_b[t, 3]))
         out_q[t] = stream.apply_heading(q_b[t].copy(), yaw)
     return out_q, out_r
-
-
-def _f32(conv: Conv) -> tuple[F32Array, F32Array]:
-    return np.asarray(conv[0], dtype=np.float32), np.asarray(conv[1], dtype=np.float32)
-
-
-class _RingLayer:
-    """One temporal layer stepped online: a ring of its last (k − 1)·d + 1 inputs."""
-
-    def __init__(self, conv: Conv, dilation: int) -> None:
-        kern, bias = _f32(conv)
-        out_ch, in_ch, k = kern.shape
-        self.k = k
-        self.dilation = dilation
-        self.size = (k - 1) * dilation + 1
-        # (out, k·in): tap i (oldest first) in columns i·in … (i + 1)·in.
-        self.kernel = np.ascontiguousarray(kern.transpose(0, 2, 1).reshape(out_ch, k * in_ch))
-        self.bias = bias
-        # Every input is written twice, at p and p + size, so the last ``size`` inputs are
-        # always one contiguous slice and the taps a strided view of it (no gather).
-        self.ring = np.zeros((2 * self.size, in_ch), dtype=np.float32)
-        self.pos = 0
-        self.started = False
-
-    def reset(self) -> None:
-        self.started = False
-
-    def step(self, x: F32Array) -> F32Array:
-        if self.k == 1:
-            out: F32Array = self.kernel @ x + self.bias
-            return out
-        n = self.size
-        if not self.started:
-            self.ring[:] = x  # the left padding: copies of the first frame
-            self.pos = 0
-            self.started = True
-        p = self.pos = (self.pos + 1) % n
-        self.ring[p] = x
-        self.ring[p + n] = x
-        # Taps t − (k − 1)·d … t, oldest first (the kernel's order): rows p + 1 … p + n.
-        taps = self.ring[p + 1 : p + n + 1 : self.dilation]
-        out = self.kernel @ taps.reshape(-1) + self.bias
-        return out
 
 
 class FastTDCNRetargeter:
@@ -266,13 +222,13 @@ class FastTDCNRetargeter:
         kern, bias = w.expand
         n_tgt = self._head.tgt_in.shape[0]
         fixed = kern[:, -n_tgt:, :].sum(-1) @ self._head.tgt_in
-        self._expand = _RingLayer((kern[:, :-n_tgt, :], bias + fixed), 1)
+        self._expand = RingConv((kern[:, :-n_tgt, :], bias + fixed), 1)
         self._dilated = [
-            _RingLayer(c, int(float(d))) for c, d in zip(w.dilated, w.dilations[1:], strict=True)
+            RingConv(c, int(float(d))) for c, d in zip(w.dilated, w.dilations[1:], strict=True)
         ]
-        self._pointwise = [_RingLayer(c, 1) for c in w.pointwise]
-        self._features = _RingLayer(w.features, 1)
-        self._out = _RingLayer(w.head, 1)
+        self._pointwise = [RingConv(c, 1) for c in w.pointwise]
+        self._features = RingConv(w.features, 1)
+        self._out = RingConv(w.head, 1)
         self._mean = np.concatenate([w.pose_mean, w.quat_mean, w.vel_mean])
         self._std = np.concatenate([w.pose_std, w.quat_std, w.vel_std])
         self.reset()

@@ -33,8 +33,9 @@ Ours, against the paper:
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as nnf
@@ -47,9 +48,14 @@ from robot_retarget.nn.features import (
 )
 from robot_retarget.nn.models.base import Prediction, RetargetModel, RetargetOutput
 from robot_retarget.nn.models.normalization import Standardizer
+from robot_retarget.nn.models.weight_export import to_numpy
 from robot_retarget.nn.skeletal_ops import SkeletalConv, SkeletalPool, SkeletalUnpool
 from robot_retarget.skeleton.armatures import ArmatureTopology, check_homeomorphic
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
+
+if TYPE_CHECKING:
+    from robot_retarget.runtime.model import RuntimeModel
+    from robot_retarget.runtime.san import SANWeights
 
 Tensor = torch.Tensor
 
@@ -363,6 +369,44 @@ class SAN(RetargetModel):
             domain, src.local_quats[:, :, 0], src.root_vel, skeleton_height(src_off), nq, n_off
         )
         return self.output(self.decode(latent, tgt), root[:, 0], src.yaw[:, 0], tgt)
+
+    # --- the live path ------------------------------------------------------------------
+
+    def runtime(self) -> RuntimeModel | None:
+        """The numpy step of the canonical path (the live path); None for a non-causal SAN."""
+        if not self.causal:
+            return None
+        from robot_retarget.runtime.model import RuntimeModel
+
+        return RuntimeModel(name=self.name, architecture="san", weights=self.export_weights())
+
+    @torch.no_grad()
+    def export_weights(self) -> SANWeights:
+        """The canonical encoder, its static encoder and the decoder as dense numpy arrays."""
+        from robot_retarget.runtime.san import SANWeights
+
+        def conv(layer: object) -> tuple[Any, Any]:
+            assert isinstance(layer, SkeletalConv)
+            return to_numpy(layer.dense_weight()), to_numpy(layer.bias)
+
+        def pool(layer: object) -> Any:
+            assert isinstance(layer, SkeletalPool)
+            return to_numpy(layer.matrix)
+
+        static = self.static_encoders[0]
+        encoder = self.encoders[0]
+        assert isinstance(static, StaticEncoder)
+        assert isinstance(encoder, DynamicEncoder)
+        return SANWeights(
+            armature_joints=np.array(CANONICAL_TOPOLOGY.joints[1:], dtype=np.float64),
+            pools=(pool(encoder.pools[0]), pool(encoder.pools[1])),
+            static=(conv(static.linears[0]), conv(static.linears[1])),
+            encoder=(conv(encoder.convs[0]), conv(encoder.convs[1])),
+            decoder=(conv(self.decoder.convs[0]), conv(self.decoder.convs[1])),
+            root_mean=to_numpy(self.root_norm.mean),
+            root_std=to_numpy(self.root_norm.std),
+            shape=(float(self.static_channels), float(self.causal)),
+        )
 
     # --- the RetargetModel interface (canonical sources) -----------------------------------
 
