@@ -412,6 +412,7 @@ class WindowSampler:
         augmentation: Augmentation | None = None,
         real_motion: bool = False,
         native: bool = False,
+        canonical_share: float = 0.5,
         seed: int = 0,
     ) -> None:
         self.clips = [c for c in dataset.clips if c.num_frames >= window_frames]
@@ -430,6 +431,7 @@ class WindowSampler:
         starts = np.array([c.num_frames - window_frames + 1 for c in self.clips], dtype=np.float64)
         self._clip_p = starts / starts.sum()  # every window equally likely
         self.native = native
+        self.canonical_share = canonical_share
         self._native_groups: list[tuple[str, np.ndarray]] = []
         if native:
             groups: dict[str, list[int]] = {}
@@ -495,14 +497,15 @@ class WindowSampler:
 
     def sample(self, step: int, stream: int = 0) -> RetargetBatch:
         """Batch number ``step`` ≥ 0 of random stream ``stream`` (float32 tensors, CPU).
-        With ``native``, every batch's clips share one native skeleton, drawn in proportion to
-        its windows, and the batch carries their native poses."""
+        With ``native``, a share ``canonical_share`` of the batches are canonical (the live
+        path's input, read by the canonical encoder); in the others every clip shares one
+        native skeleton, drawn in proportion to its windows, and the batch carries their native
+        poses."""
         rng = np.random.default_rng([self.seed, stream, step])
         domain: str | None = None
-        if self.native:
-            domain, pool = self._native_groups[
-                int(rng.choice(len(self._native_groups), p=self._group_p))
-            ]
+        if self.native and rng.random() >= self.canonical_share:
+            g = int(rng.choice(len(self._native_groups), p=self._group_p))
+            domain, pool = self._native_groups[g]
             sources = [self._native_source(rng, pool) for _ in range(self.batch_size)]
         else:
             sources = [self._source(rng) for _ in range(self.batch_size)]

@@ -92,36 +92,34 @@ def test_non_causal_san_has_no_online_step(dataset) -> None:  # type: ignore[no-
 
 def test_native_batches_hold_one_skeleton_and_match_the_canonical_window(dataset) -> None:  # type: ignore[no-untyped-def]
     sampler = WindowSampler(dataset, window_frames=12, batch_size=3, native=True, seed=2)
-    seen = set()
-    for step in range(8):
+    seen: set[str | None] = set()
+    for step in range(16):
         b = sampler.sample(step)
-        assert b.native_domain is not None
-        assert b.native_quats is not None
         seen.add(b.native_domain)
-        a = b.native_quats.shape[2]
+        if b.native_domain is None:  # a canonical batch: the live path's input
+            assert b.native_quats is None
+            assert b.native_offsets is None
+            continue
+        assert b.native_quats is not None
         assert b.native_offsets is not None
+        a = b.native_quats.shape[2]
         assert b.native_offsets.shape == (3, a, 3)
         # The native window is the canonical window's: find it in its clip.
-        clip = next(
-            c
+        window = b.src_local_quats[0].numpy()
+        found = [
+            (c, s)
             for c in sampler.clips
-            if c.native is not None
-            and c.native.topology.name == b.native_domain
-            and any(
-                np.allclose(c.local_quats[s : s + 12], b.src_local_quats[0].numpy(), atol=1e-6)
-                for s in range(c.num_frames - 11)
-            )
-        )
+            if c.native is not None and c.native.topology.name == b.native_domain
+            for s in range(c.num_frames - 11)
+            if np.allclose(c.local_quats[s : s + 12], window, atol=1e-6)
+        ]
+        assert found
+        clip, start = found[0]
         assert clip.native is not None
-        start = next(
-            s
-            for s in range(clip.num_frames - 11)
-            if np.allclose(clip.local_quats[s : s + 12], b.src_local_quats[0].numpy(), atol=1e-6)
-        )
-        assert np.allclose(
-            clip.native.local_quats[start : start + 12], b.native_quats[0].numpy(), atol=1e-6
-        )
-    assert len(seen) > 1
+        native = clip.native.local_quats[start : start + 12]
+        assert np.allclose(native, b.native_quats[0].numpy(), atol=1e-6)
+    assert None in seen
+    assert len(seen) > 2
 
 
 def test_native_batches_train(dataset) -> None:  # type: ignore[no-untyped-def]
@@ -129,7 +127,10 @@ def test_native_batches_train(dataset) -> None:  # type: ignore[no-untyped-def]
     torch.manual_seed(1)
     disc = build_discriminator("san", channels=8, dilations=(1, 2))
     opt = make_optimizers(model, disc, lr=3e-3)
-    batch = WindowSampler(dataset, window_frames=12, batch_size=4, native=True, seed=0).sample(0)
+    sampler = WindowSampler(
+        dataset, window_frames=12, batch_size=4, native=True, canonical_share=0.0, seed=0
+    )
+    batch = sampler.sample(0)
     model.fit_normalization(*fit_features(WindowSampler(dataset, window_frames=12), batches=2))
     assert batch.native_domain is not None
     encoder = model.encoders[model.domain_names.index(batch.native_domain)]
