@@ -73,6 +73,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         type=float,
         help="2D keypoint input: the camera's frame rate (default: the file's, else 30)",
     )
+    parser.add_argument(
+        "--canonical-input",
+        action="store_true",
+        help="a skeleton-aware model (san) reads BVH clips on their own skeleton when it has an "
+        "encoder for it; this feeds it the canonical joints instead, as stream does",
+    )
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     parser.add_argument(
         "--lead-in",
@@ -199,6 +205,7 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
         lead_in=args.lead_in,
         keypoint_model=args.keypoint_model,
         keypoint_fps=args.keypoint_fps,
+        canonical_input=args.canonical_input,
     )
 
 

@@ -16,8 +16,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from robot_retarget.errors import RetargetError
+from robot_retarget.errors import ModelLoadError, RetargetError
+
+if TYPE_CHECKING:
+    from robot_retarget.motion.human_motion import HumanMotion
+    from robot_retarget.nn.inference import LoadedModel
+    from robot_retarget.pipeline.precomputed_step import PrecomputedStep
 
 Progress = Callable[[int, int], None]
 
@@ -33,6 +39,9 @@ class ConvertOptions:
     lead_in: bool = False
     keypoint_model: str | None = None
     keypoint_fps: float | None = None
+    # A skeleton-aware model (san) reads a BVH clip on its own skeleton when it has an encoder
+    # for it; True feeds it the canonical joints instead, as ``stream`` does.
+    canonical_input: bool = False
 
 
 @dataclass(frozen=True)
@@ -84,6 +93,7 @@ class ClipConverter:
         self.config = load_robot_config(options.robot)
         self.model = load_runtime_model(options.model)
         self.step = RetargetStep(self.config, self.model, default_canonical_skeleton())
+        self.native_model = None if options.canonical_input else _skeleton_aware(self.model)
 
     def convert(
         self,
@@ -126,12 +136,16 @@ class ClipConverter:
                 )
         else:
             motion = load_motion(clip, max_frames=opt.max_frames)
+        network = None
+        if self.native_model is not None and not is_keypoint_input(clip):
+            network = self._read_on_own_skeleton(clip, motion, log)
         result = convert_motion(
             motion,
             self.step,
             fps=opt.fps,
             progress=progress,
             lead_in_speed_fraction=0.25 if opt.lead_in else None,
+            network=network,
         )
         traj = result.trajectory
         folders = job.make_folders
@@ -176,3 +190,58 @@ class ClipConverter:
             position_excess_rad=result.limits.position_excess_rad,
             velocity_excess_rad=result.limits.velocity_excess_rad,
         )
+
+    def _read_on_own_skeleton(
+        self, clip: Path, motion: HumanMotion, log: Callable[[str], None] | None
+    ) -> PrecomputedStep | None:
+        """The skeleton-aware model run over ``clip`` read on the file's own skeleton, at the
+        output rate; None (the canonical joints, with a note) when it has no encoder for it."""
+        from robot_retarget.motion.bvh import read_bvh
+        from robot_retarget.motion.native_pose import native_pose
+        from robot_retarget.nn.inference import retarget_clip
+        from robot_retarget.pipeline.precomputed_step import PrecomputedStep
+
+        assert self.native_model is not None
+        native = native_pose(read_bvh(clip), motion)
+        net = self.native_model.model
+        domain = getattr(net, "domain_of", lambda _t: None)(native.topology)
+        if domain is None:
+            if log is not None:
+                log(
+                    f"{clip}: {self.model.name} has no encoder for its skeleton "
+                    f"{native.topology.name!r}; it reads the canonical joints"
+                )
+            return None
+        rate = self.options.fps or self.config.control_rate_hz
+        m = motion if abs(motion.fps - rate) < 1e-9 else motion.resample(rate)
+        native = native if m is motion else native.resample(motion.fps, rate)
+        robot = self.step.robot_skeleton.offsets
+        quats, root = retarget_clip(
+            self.native_model, m.local_quats, m.root_pos, m.skeleton.offsets, robot, native=native
+        )
+        if log is not None:
+            log(f"{clip}: read on its own skeleton ({domain}) by {self.model.name}")
+        return PrecomputedStep(quats, root)
+
+
+def _skeleton_aware(model: object) -> LoadedModel | None:
+    """The torch model behind ``model`` if it reads files on their own skeletons (SAN) and
+    torch is installed; else None (the canonical joints, as everywhere else)."""
+    from robot_retarget.runtime.model import RuntimeModel
+
+    if isinstance(model, RuntimeModel) and model.architecture != "san":
+        return None
+    try:
+        from robot_retarget.nn.inference import LoadedModel, load_model
+        from robot_retarget.nn.models.san import SAN
+    except ImportError:
+        return None
+    if isinstance(model, LoadedModel):
+        return model if isinstance(model.model, SAN) else None
+    assert isinstance(model, RuntimeModel)
+    source = model.path.with_suffix(".pt") if model.path is not None else None
+    try:
+        loaded = load_model(str(source) if source is not None and source.is_file() else model.name)
+    except ModelLoadError:
+        return None  # only its numpy runtime is here: the canonical joints
+    return loaded if isinstance(loaded.model, SAN) else None

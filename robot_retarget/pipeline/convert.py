@@ -31,6 +31,7 @@ from robot_retarget.pipeline.recorder import RecordingBackend
 from robot_retarget.pipeline.start_ramp import toward
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.runtime.model import OnlineStep
 
 _LIMIT_TOL_RAD = 1e-9
 # Command stamps 1 ppb apart more than dt: the safety layer then bounds each step by exactly
@@ -93,13 +94,18 @@ def convert_motion(
     fps: float | None = None,
     progress: Callable[[int, int], None] | None = None,
     lead_in_speed_fraction: float | None = None,
+    network: OnlineStep | None = None,
 ) -> ClipResult:
     """Retarget ``motion`` frame by frame at ``fps`` (default: the robot's control rate).
 
     ``lead_in_speed_fraction``: also prepend a move from the robot's init pose to the first
     frame at that fraction of each joint's velocity limit (the stream's ramp speed is 0.25),
     stamped before the clip: ``t0`` < 0, the clip itself still starts at t = 0 and is
-    unchanged. Without it the file starts at the clip's first frame."""
+    unchanged. Without it the file starts at the clip's first frame.
+
+    ``network``: the network step to use instead of the model's own (e.g. a
+    :class:`~robot_retarget.pipeline.precomputed_step.PrecomputedStep` of the clip read on its
+    own skeleton, at the output rate)."""
     config = step.config
     rate = float(fps) if fps is not None else config.control_rate_hz
     m = motion if abs(motion.fps - rate) < 1e-9 else motion.resample(rate)
@@ -109,6 +115,8 @@ def convert_motion(
     safety = SafetyLayer(file_config, RecordingBackend(config))
     safety.connect()
     step.set_source(m.skeleton)
+    if network is not None:
+        step.online = network
     step.reset(config.init_pose)
     n = m.num_frames
     q = np.empty((n, config.num_joints))

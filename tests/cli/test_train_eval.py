@@ -9,9 +9,10 @@ import shutil
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
-from robot_retarget.cli import bench_cmd, eval_cmd, train_cmd
+from robot_retarget.cli import bench_cmd, convert_cmd, eval_cmd, train_cmd
 from robot_retarget.errors import RetargetError
 from robot_retarget.nn import benchmark
 
@@ -174,3 +175,16 @@ def test_san_trains_and_is_scored_on_the_files_own_skeletons(
     best = str(out / "best.pt")
     # The SAN twice (canonical joints, then each file's own), copy once: it has no encoders.
     assert rows == [best, f"{best} (file's skeleton)", "copy"]
+
+    # convert reads a BVH on its own skeleton through its encoder; --canonical-input does not.
+    clip = mocap / "s1" / "tiny_walk.bvh"
+    outs = {}
+    for flag in ([], ["--canonical-input"]):
+        path = tmp_path / f"walk{len(flag)}.npz"
+        argv = [str(clip), "--robot", "op3", "--model", best, "--out", str(path), *flag]
+        assert _run(convert_cmd, argv) == 0
+        outs[len(flag)] = np.load(path)["q"]
+    err = capsys.readouterr().err
+    assert "tiny_walk.bvh: read on its own skeleton (CMU MotionBuilder-25j)" in err
+    assert outs[0].shape == outs[1].shape
+    assert not np.allclose(outs[0], outs[1])
