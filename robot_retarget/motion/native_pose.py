@@ -24,7 +24,11 @@ from robot_retarget.motion.canonicalize import clip_geometry
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.motion.joint_map import JointMap, map_joints
 from robot_retarget.motion.units import unit_scale_m
-from robot_retarget.skeleton.armatures import ArmatureTopology
+from robot_retarget.skeleton.armatures import (
+    ArmatureTopology,
+    canonical_topology,
+    check_homeomorphic,
+)
 from robot_retarget.skeleton.canonical import Joint
 
 # Canonical joints that may realise each end-effector, deepest first.
@@ -88,11 +92,14 @@ class NativePose:
 
 def native_pose(clip: BvhClip, motion: HumanMotion) -> NativePose:
     """``clip``'s armature rotations, frame for frame with ``motion`` = canonicalize(clip)
-    (its dropped T-pose frames dropped, its unit, its frame count)."""
+    (its dropped T-pose frames dropped, its unit, its frame count). Raises TopologyError when
+    the skeleton does not pool to the canonical skeleton's primal skeleton (no shared latent
+    space to read it into)."""
     jm = map_joints(clip.names, clip_geometry(clip), family=motion.name_family, path=clip.path)
     topology = ArmatureTopology.from_tree(
         f"{jm.family}-{clip.num_joints}j", clip.names, clip.parents, end_effector_joints(jm)
     )
+    check_homeomorphic([canonical_topology(), topology])
     first = motion.tpose_frames_dropped
     body = clip.frames(first, first + motion.num_frames)
     joints = list(topology.joints[1:])

@@ -200,9 +200,15 @@ class ClipConverter:
         from robot_retarget.motion.native_pose import native_pose
         from robot_retarget.nn.inference import retarget_clip
         from robot_retarget.pipeline.precomputed_step import PrecomputedStep
+        from robot_retarget.skeleton.armatures import TopologyError
 
         assert self.native_model is not None
-        native = native_pose(read_bvh(clip), motion)
+        try:
+            native = native_pose(read_bvh(clip), motion)
+        except TopologyError as exc:
+            if log is not None:
+                log(f"{clip}: not read on its own skeleton ({exc}); the canonical joints")
+            return None
         net = self.native_model.model
         domain = getattr(net, "domain_of", lambda _t: None)(native.topology)
         if domain is None:

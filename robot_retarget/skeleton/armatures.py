@@ -269,3 +269,16 @@ def check_homeomorphic(topologies: Sequence[ArmatureTopology]) -> None:
                 f"{list(first.primal_signature)} (same end-effectors, same branching needed)",
                 skeleton=t.name,
             )
+
+
+def canonical_topology() -> ArmatureTopology:
+    """The canonical 22-joint skeleton's armatures (robot_retarget.skeleton.canonical)."""
+    from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
+
+    ends = ("LeftToeBase", "RightToeBase", "Head", "LeftHand", "RightHand")
+    return ArmatureTopology.from_tree(
+        "canonical",
+        CANONICAL_JOINTS,
+        CANONICAL_PARENTS,
+        [CANONICAL_JOINTS.index(n) for n in ends],
+    )

@@ -7,18 +7,9 @@ import pytest
 import torch
 
 from robot_retarget.nn.skeletal_ops import SkeletalConv, SkeletalPool, SkeletalUnpool
-from robot_retarget.skeleton.armatures import ArmatureTopology
-from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
+from robot_retarget.skeleton.armatures import canonical_topology
 
-TOPOLOGY = ArmatureTopology.from_tree(
-    "canonical",
-    CANONICAL_JOINTS,
-    CANONICAL_PARENTS,
-    [
-        CANONICAL_JOINTS.index(n)
-        for n in ("LeftToeBase", "RightToeBase", "Head", "LeftHand", "RightHand")
-    ],
-)
+TOPOLOGY = canonical_topology()
 LEVEL = TOPOLOGY.base
 C_IN, C_OUT, K, T = 3, 2, 3, 10
 

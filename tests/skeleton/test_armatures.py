@@ -10,14 +10,9 @@ from robot_retarget.skeleton.armatures import (
     ArmatureTopology,
     PoolLevel,
     TopologyError,
+    canonical_topology,
     check_homeomorphic,
 )
-from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
-
-CANONICAL_ENDS = [
-    CANONICAL_JOINTS.index(n)
-    for n in ("LeftToeBase", "RightToeBase", "Head", "LeftHand", "RightHand")
-]
 
 
 def _tree(edges: list[tuple[str, str | None]]) -> tuple[list[str], list[int]]:
@@ -61,9 +56,7 @@ def _ends(names: list[str], *ends: str) -> list[int]:
 
 
 def _canonical() -> ArmatureTopology:
-    return ArmatureTopology.from_tree(
-        "canonical", CANONICAL_JOINTS, CANONICAL_PARENTS, CANONICAL_ENDS
-    )
+    return canonical_topology()
 
 
 def _daz() -> ArmatureTopology:

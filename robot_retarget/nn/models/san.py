@@ -50,8 +50,12 @@ from robot_retarget.nn.models.base import Prediction, RetargetModel, RetargetOut
 from robot_retarget.nn.models.normalization import Standardizer
 from robot_retarget.nn.models.weight_export import to_numpy
 from robot_retarget.nn.skeletal_ops import SkeletalConv, SkeletalPool, SkeletalUnpool
-from robot_retarget.skeleton.armatures import ArmatureTopology, check_homeomorphic
-from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
+from robot_retarget.skeleton.armatures import (
+    ArmatureTopology,
+    canonical_topology,
+    check_homeomorphic,
+)
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 
 if TYPE_CHECKING:
     from robot_retarget.runtime.model import RuntimeModel
@@ -60,15 +64,7 @@ if TYPE_CHECKING:
 Tensor = torch.Tensor
 
 CANONICAL_DOMAIN = "canonical"
-CANONICAL_TOPOLOGY = ArmatureTopology.from_tree(
-    CANONICAL_DOMAIN,
-    CANONICAL_JOINTS,
-    CANONICAL_PARENTS,
-    [
-        CANONICAL_JOINTS.index(n)
-        for n in ("LeftToeBase", "RightToeBase", "Head", "LeftHand", "RightHand")
-    ],
-)
+CANONICAL_TOPOLOGY = canonical_topology()
 POOL_STEPS = 2
 ROOT_CHANNELS = 8  # heading-free root rotation (4) + root movement (4)
 QUAT = 4
@@ -301,7 +297,7 @@ class SAN(RetargetModel):
         try:
             return self.domain_names.index(domain)
         except ValueError:
-            raise KeyError(
+            raise ValueError(
                 f"SAN has no encoder for skeleton {domain!r}; it knows {list(self.domain_names)}"
             ) from None
 
