@@ -146,3 +146,11 @@ def generator_adversarial_loss(fake_logits: Tensor) -> Tensor:
     (The saturating form, as written in NKN eq. 13 and PMnet eq. 10; it is ≤ 0.)
     """
     return -nnf.softplus(fake_logits)
+
+
+def masked_mean(values: Tensor, mask: Tensor) -> float:
+    """Mean of ``values`` (detached) where ``mask`` holds; 0 when it holds nowhere (a loss
+    term logged for the samples it applies to)."""
+    if not bool(mask.any()):
+        return 0.0
+    return float(values.detach()[mask].mean())

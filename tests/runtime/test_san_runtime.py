@@ -16,11 +16,16 @@ from hypothesis.extra.numpy import arrays
 from robot_retarget.nn.inference import LoadedModel, retarget_clip
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.nn.models.san import SAN
-from robot_retarget.runtime.model import RuntimeModel, load_runtime, save_runtime
+from robot_retarget.runtime.model import RuntimeModel
 from robot_retarget.runtime.san import FastSANRetargeter
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from tests.pipeline.stream_equality import assert_same_stream
-from tests.runtime.test_tdcn_runtime import _clip, _same_rotations
+from tests.runtime.runtime_checks import (
+    assert_export_round_trip,
+    assert_finite_unit_outputs,
+    smooth_clip,
+)
+from tests.runtime.test_tdcn_runtime import _same_rotations
 
 TOL = 1e-5
 
@@ -40,7 +45,7 @@ def _san(causal: bool = True, seed: int = 0) -> SAN:
 def test_online_step_equals_torch_step_and_clip() -> None:
     src = default_canonical_skeleton().offsets
     tgt = 0.4 * src
-    quats, root = _clip(60, seed=1)  # longer than the 13-frame receptive field
+    quats, root = smooth_clip(60, seed=1)  # longer than the 13-frame receptive field
     model = _san()
     assert_same_stream(
         LoadedModel(name="san", model=model), src, tgt, quats, root, FastSANRetargeter, TOL
@@ -53,19 +58,10 @@ def test_online_step_equals_torch_step_and_clip() -> None:
 
 
 def test_export_round_trip(tmp_path: Path) -> None:
-    model = _san()
-    runtime = model.runtime()
+    runtime = _san().runtime()
     assert runtime is not None
     assert runtime.architecture == "san"
-    back = load_runtime(save_runtime(runtime, tmp_path / "san.npz"))
-    src = default_canonical_skeleton().offsets
-    quats, root = _clip(30, seed=2)
-    a, b = runtime.online(src, 0.5 * src), back.online(src, 0.5 * src)
-    for t in range(len(quats)):
-        qa, ra = a.step(quats[t], root[t])
-        qb, rb = b.step(quats[t], root[t])
-        np.testing.assert_allclose(qa, qb, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(ra, rb, rtol=0, atol=1e-6)
+    assert_export_round_trip(runtime, tmp_path / "san.npz")
 
 
 def test_a_centred_san_has_no_online_step() -> None:
@@ -85,10 +81,4 @@ _RUNTIME = RuntimeModel(name="san", architecture="san", weights=_san(seed=3).exp
     arrays(np.float64, (5, 3), elements=st.floats(-1e6, 1e6)),
 )
 def test_any_finite_stream_gives_finite_unit_quaternions(raw: np.ndarray, root: np.ndarray) -> None:
-    src = default_canonical_skeleton().offsets
-    step = _RUNTIME.online(src, 0.35 * src)
-    for t in range(len(raw)):
-        q, pos = step.step(raw[t], root[t])
-        assert np.all(np.isfinite(q))
-        assert np.all(np.isfinite(pos))
-        np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
+    assert_finite_unit_outputs(_RUNTIME, raw, root)

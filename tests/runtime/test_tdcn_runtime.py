@@ -12,14 +12,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from robot_retarget.geometry import quaternion as quat
 from robot_retarget.nn.inference import LoadedModel, retarget_clip
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.nn.models.tdcn import TDCN
-from robot_retarget.runtime.model import RuntimeModel, load_runtime, save_runtime
+from robot_retarget.runtime.model import RuntimeModel
 from robot_retarget.runtime.tdcn import FastTDCNRetargeter, run_clip
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from tests.pipeline.stream_equality import assert_same_stream
+from tests.runtime.runtime_checks import (
+    assert_export_round_trip,
+    assert_finite_unit_outputs,
+    smooth_clip,
+)
 
 TOL = 1e-5
 
@@ -46,11 +50,7 @@ def _tdcn(causal: bool = True, seed: int = 0) -> TDCN:
 
 
 def _clip(frames: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Smooth random rotations (T, 22, 4) and a wandering, turning root (T, 3)."""
-    rng = np.random.default_rng(seed)
-    rot = 0.3 * rng.normal(size=(1, 22, 3)) + np.cumsum(rng.normal(0, 0.05, (frames, 22, 3)), 0)
-    root = np.cumsum(rng.normal(0, 0.02, (frames, 3)), 0) + np.array([0.0, 0.9, 0.0])
-    return quat.from_rotation_vector(rot), root
+    return smooth_clip(frames, seed)
 
 
 def _same_rotations(a: np.ndarray, b: np.ndarray) -> None:
@@ -87,19 +87,10 @@ def test_online_step_equals_torch_step_and_clip() -> None:
 
 
 def test_export_round_trip(tmp_path: Path) -> None:
-    model = _tdcn()
-    runtime = model.runtime()
+    runtime = _tdcn().runtime()
     assert runtime is not None
     assert runtime.architecture == "tdcn"
-    back = load_runtime(save_runtime(runtime, tmp_path / "tdcn.npz"))
-    src = default_canonical_skeleton().offsets
-    quats, root = _clip(40, seed=2)
-    a, b = runtime.online(src, 0.5 * src), back.online(src, 0.5 * src)
-    for t in range(len(quats)):
-        qa, ra = a.step(quats[t], root[t])
-        qb, rb = b.step(quats[t], root[t])
-        np.testing.assert_allclose(qa, qb, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(ra, rb, rtol=0, atol=1e-6)
+    assert_export_round_trip(runtime, tmp_path / "tdcn.npz")
 
 
 def test_a_centred_tdcn_has_no_online_step() -> None:
@@ -120,13 +111,7 @@ _RUNTIME = RuntimeModel(name="tdcn", architecture="tdcn", weights=_tdcn(seed=3).
     arrays(np.float64, (5, 3), elements=st.floats(-1e6, 1e6)),
 )
 def test_any_finite_stream_gives_finite_unit_quaternions(raw: np.ndarray, root: np.ndarray) -> None:
-    src = default_canonical_skeleton().offsets
-    step = _RUNTIME.online(src, 0.35 * src)
-    for t in range(len(raw)):
-        q, pos = step.step(raw[t], root[t])
-        assert np.all(np.isfinite(q))
-        assert np.all(np.isfinite(pos))
-        np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
+    assert_finite_unit_outputs(_RUNTIME, raw, root)
 
 
 def test_the_shipped_tdcn_runtime_is_its_checkpoint() -> None:

@@ -29,6 +29,7 @@ import torch
 from torch import nn
 
 from robot_retarget.nn.features import MotionFeatures, compute_features, skeleton_height
+from robot_retarget.nn.losses import masked_mean
 from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.san import SAN
 from robot_retarget.nn.patch_discriminator import (
@@ -38,16 +39,14 @@ from robot_retarget.nn.patch_discriminator import (
 )
 from robot_retarget.nn.retarget_losses import global_positions
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.canonical import END_EFFECTORS as CANONICAL_END_EFFECTORS
 
 if TYPE_CHECKING:
     from robot_retarget.nn.models.training import Optimizers
 
 Tensor = torch.Tensor
 
-END_EFFECTORS: tuple[int, ...] = tuple(
-    int(j)
-    for j in (Joint.LeftToeBase, Joint.RightToeBase, Joint.Head, Joint.LeftHand, Joint.RightHand)
-)
+END_EFFECTORS: tuple[int, ...] = tuple(int(Joint[name]) for name in CANONICAL_END_EFFECTORS)
 
 
 @dataclass(frozen=True)
@@ -102,10 +101,6 @@ def effector_velocity_error(
     return ((v_a / h_a - v_b / h_b) ** 2).sum(-1).mean((-1, -2))
 
 
-def _masked_mean(values: Tensor, mask: Tensor) -> float:
-    return float(values.detach()[mask].mean()) if bool(mask.any()) else 0.0
-
-
 def san_training_step(
     model: SAN,
     disc: PatchDiscriminator,
@@ -157,7 +152,7 @@ def san_training_step(
         "reconstruction": float(rec.detach().mean()),
         "effector": float(ee.detach().mean()),
         "latent": float(ltc.detach().mean()),
-        "adversarial": _masked_mean(lsgan, other),
+        "adversarial": masked_mean(lsgan, other),
     }
     d_opt = optimizers.discriminator
     if d_opt is not None and bool(other.any()):

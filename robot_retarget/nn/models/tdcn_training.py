@@ -47,7 +47,7 @@ from robot_retarget.nn.features import (
     integrate_root,
     skeleton_height,
 )
-from robot_retarget.nn.losses import TWIST_ALPHA_RAD, twist_loss
+from robot_retarget.nn.losses import TWIST_ALPHA_RAD, masked_mean, twist_loss
 from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.tdcn import TDCN
 from robot_retarget.nn.patch_discriminator import (
@@ -128,10 +128,6 @@ def height_loss(
 def rotation_angle(q: Tensor) -> Tensor:
     """E(q): rotation angle (rad, [0, π]) of quaternions (…, 4)."""
     return 2.0 * torch.atan2(torch.linalg.vector_norm(q[..., 1:], dim=-1), q[..., 0].abs())
-
-
-def _masked_mean(values: Tensor, mask: Tensor) -> float:
-    return float(values.detach()[mask].mean()) if bool(mask.any()) else 0.0
 
 
 def metric_losses(
@@ -227,8 +223,8 @@ def tdcn_training_step(
         "cycle": float(cycle.detach().mean()),
         "twist": float(twist.detach().mean()),
         "height": float(height.detach().mean()),
-        "square": _masked_mean(square, same),
-        "adversarial": _masked_mean(lsgan, ~same),
+        "square": masked_mean(square, same),
+        "adversarial": masked_mean(lsgan, ~same),
         "regularization": float(torch.as_tensor(reg).detach().mean()),
         "orientation": float(orient.detach().mean()),
         **{name: float(term.detach().mean()) for name, term in extra.items()},

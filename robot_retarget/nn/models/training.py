@@ -47,6 +47,7 @@ from robot_retarget.nn.losses import (
     discriminator_loss,
     end_effector_weights,
     generator_adversarial_loss,
+    masked_mean,
     mean_point_trajectory,
     perceptual_pose_loss,
     reconstruction_loss,
@@ -191,8 +192,8 @@ def nkn_training_step(
     losses = {
         "total": float(total.detach()),
         "cycle": float(cycle.detach().mean()),
-        "square": _masked_mean(square, same),
-        "adversarial": _masked_mean(adversarial, ~same),
+        "square": masked_mean(square, same),
+        "adversarial": masked_mean(adversarial, ~same),
         "twist": float(twist.detach().mean()),
         "smoothing": float(smooth.detach().mean()),
     }
@@ -444,9 +445,3 @@ def training_step(
         "PMnetDiscriminator, TDCN or SAN + PatchDiscriminator, residual without one (copy "
         "baselines have nothing to train)"
     )
-
-
-def _masked_mean(values: Tensor, mask: Tensor) -> float:
-    if not bool(mask.any()):
-        return 0.0
-    return float(values.detach()[mask].mean())
