@@ -13,8 +13,10 @@ Each batch comes from one source skeleton (robot_retarget.nn.dataset.WindowSampl
   ``rotation``, ``position`` and ``root`` weigh those three inside L_rec.
 - L_ltc: the retargeted motion, encoded again (by the canonical encoder: the target domain's),
   must give the latent it was decoded from.
-- L_ee (eq. 8): end-effector velocities (toes, head, hands; world frame), each divided by the
-  length of its chain from the root, equal on source and target.
+- L_ee (eq. 8; ``ee_velocity``): end-effector velocities (toes, head, hands; world frame),
+  each divided by the length of its chain from the root, equal on source and target.
+- Optional (ours, off by default): the eval metrics as losses, as TDCN takes them
+  (``--loss-weight bone=3`` etc.; tdcn_training.metric_losses).
 - L_adv: least squares against the patch discriminator (robot_retarget.nn.patch_discriminator,
   as TDCN's: inputs normalised by height, so any performer's motion is real motion for any
   skeleton) on the samples whose target differs from the source.
@@ -32,6 +34,7 @@ from robot_retarget.nn.features import MotionFeatures, compute_features, skeleto
 from robot_retarget.nn.losses import masked_mean
 from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.san import SAN
+from robot_retarget.nn.models.tdcn_training import metric_losses
 from robot_retarget.nn.patch_discriminator import (
     PatchDiscriminator,
     patch_discriminator_step,
@@ -55,11 +58,18 @@ class SANLossWeights:
 
     latent: float = 1.0
     adversarial: float = 0.25
-    effector: float = 2.0
+    ee_velocity: float = 2.0
     rotation: float = 10.0
     position: float = 100.0
     root: float = 1.0
     grad_clip_norm: float = 25.0
+    # The project's eval metrics as losses, as TDCN takes them (tdcn_training.metric_losses);
+    # off by default: the paper's objective alone.
+    effector: float = 0.0
+    contact: float = 0.0
+    bone: float = 0.0
+    skate: float = 0.0
+    denoise: float = 0.0
 
 
 def chain_lengths(offsets: Tensor, joints: tuple[int, ...] = END_EFFECTORS) -> Tensor:
@@ -136,12 +146,13 @@ def san_training_step(
     fb = out_b.features
     world_src = global_positions(src.local_pos, batch.src_root_pos, src.yaw)
     world_b = global_positions(fb.local_pos, out_b.root_pos, fb.yaw)
-    ee = w.effector * effector_velocity_error(world_src, src_off, world_b, tgt_off, fps)
+    ee = w.ee_velocity * effector_velocity_error(world_src, src_off, world_b, tgt_off, fps)
     ltc = w.latent * ((model.encode_canonical(fb, tgt_off) - latent) ** 2).mean((1, 2, 3))
     other = ~batch.same_skeleton.to(torch.bool)
     lsgan = ((disc(patch_inputs(fb.local_pos, fb.root_vel, tgt_off)) - 1.0) ** 2).mean(-1)
     adversarial = w.adversarial * torch.where(other, lsgan, torch.zeros_like(lsgan))
-    total = (rec + ee + ltc + adversarial).mean()
+    extra = metric_losses(model, batch, src, out_b, w, fps)
+    total = (rec + ee + ltc + adversarial + sum(extra.values())).mean()
     optimizers.generator.zero_grad(set_to_none=True)
     total.backward()  # type: ignore[no-untyped-call]
     nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
@@ -150,9 +161,10 @@ def san_training_step(
     losses = {
         "total": float(total.detach()),
         "reconstruction": float(rec.detach().mean()),
-        "effector": float(ee.detach().mean()),
+        "ee_velocity": float(ee.detach().mean()),
         "latent": float(ltc.detach().mean()),
         "adversarial": masked_mean(lsgan, other),
+        **{name: float(term.detach().mean()) for name, term in extra.items()},
     }
     d_opt = optimizers.discriminator
     if d_opt is not None and bool(other.any()):

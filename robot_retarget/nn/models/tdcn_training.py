@@ -34,7 +34,7 @@ generator gradients clipped to norm 25 (ours, as the other models).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import torch
 from torch import nn
@@ -66,7 +66,7 @@ from robot_retarget.nn.retarget_losses import (
 )
 
 if TYPE_CHECKING:
-    from robot_retarget.nn.models.base import RetargetOutput
+    from robot_retarget.nn.models.base import RetargetModel, RetargetOutput
     from robot_retarget.nn.models.training import Optimizers
 
 Tensor = torch.Tensor
@@ -130,12 +130,27 @@ def rotation_angle(q: Tensor) -> Tensor:
     return 2.0 * torch.atan2(torch.linalg.vector_norm(q[..., 1:], dim=-1), q[..., 0].abs())
 
 
+class MetricWeights(Protocol):
+    """The optional eval-metric terms' weights (0: off), as TDCN's and SAN's weights hold."""
+
+    @property
+    def effector(self) -> float: ...
+    @property
+    def contact(self) -> float: ...
+    @property
+    def bone(self) -> float: ...
+    @property
+    def skate(self) -> float: ...
+    @property
+    def denoise(self) -> float: ...
+
+
 def metric_losses(
-    model: TDCN,
+    model: RetargetModel,
     batch: RetargetBatch,
     src: MotionFeatures,
     out_b: RetargetOutput,
-    w: TDCNLossWeights,
+    w: MetricWeights,
     fps: float,
 ) -> dict[str, Tensor]:
     """The optional terms (see the module docstring), weighted, per sample (B,); only those

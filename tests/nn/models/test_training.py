@@ -44,7 +44,7 @@ EXPECTED_KEYS = {
         "orientation",
         "discriminator",
     },
-    "san": {"total", "reconstruction", "effector", "latent", "adversarial", "discriminator"},
+    "san": {"total", "reconstruction", "ee_velocity", "latent", "adversarial", "discriminator"},
 }
 # The term each model learns first: NKN's cycle consistency, PMnet's pose reconstruction, the
 # residual model's supervised denoising.
