@@ -98,6 +98,12 @@ def run(args: argparse.Namespace) -> int:
     robot_names = [r for r in (args.robot or ["op3"]) if r != "none"]
     robots = robot_skeletons(tuple(robot_names))
     settings = EvalSettings(robots=tuple(robot_names), max_frames=args.max_frames, seed=args.seed)
+    if args.native_input and not any(isinstance(m.model, SAN) for m in models):
+        print(
+            "note: --native-input scores skeleton-aware models (san) a second time; none of "
+            f"{names} is one, so no row is added",
+            file=sys.stderr,
+        )
     results = []
     for m in models:
         trained_on = set(m.metadata.get("train_subjects", []))
