@@ -15,9 +15,12 @@ from pathlib import Path
 from typing import Any
 
 from robot_retarget.errors import MotionFormatError, RetargetError
-from robot_retarget.motion.bvh import read_bvh
+from robot_retarget.motion.bvh import BvhClip, read_bvh
 from robot_retarget.motion.canonicalize import canonicalize
+from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.motion.native_pose import native_pose
 from robot_retarget.motion.units import UNIT_SCALES_M
+from robot_retarget.skeleton.armatures import TopologyError
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 
 NAME = "inspect"
@@ -62,6 +65,21 @@ def describe(path: str, *, unit: str | None = None, keep_tpose: bool = False) ->
         "up_axis": motion.up_axis,
         "tpose_dropped": motion.dropped_tpose,
         "tpose_frames_dropped": motion.tpose_frames_dropped,
+        "armatures": _armatures(clip, motion),
+    }
+
+
+def _armatures(clip: BvhClip, motion: HumanMotion) -> dict[str, Any]:
+    """How a skeleton-aware model (SAN) reads the file: its own skeleton as armatures, or
+    why it cannot (not homeomorphic to the canonical skeleton)."""
+    try:
+        topology = native_pose(clip, motion).topology
+    except TopologyError as exc:
+        return {"skeleton": None, "why_not": str(exc)}
+    return {
+        "skeleton": topology.name,
+        "kept": topology.num_armatures - 1,
+        "names": list(topology.armature_names[1:]),
     }
 
 
@@ -81,8 +99,15 @@ def format_text(info: dict[str, Any]) -> str:
             f"  unit:        {info['unit']} (height {info['height_m']:.3f} m, "
             f"{info['up_axis']} up)",
             f"  T-pose dropped: {tpose}",
+            f"  own skeleton (SAN): {_armature_text(info['armatures'])}",
         ]
     )
+
+
+def _armature_text(armatures: dict[str, Any]) -> str:
+    if armatures["skeleton"] is None:
+        return f"none: {armatures['why_not']}"
+    return f"{armatures['skeleton']}, {armatures['kept']} joints on the chains kept"
 
 
 def expand_paths(paths: list[str]) -> list[str | MotionFormatError]:

@@ -127,3 +127,15 @@ def test_a_folder_is_every_bvh_under_it_sorted(
     errors = captured.err.strip().splitlines()
     assert len(errors) == 1
     assert "empty: no .bvh files in this folder" in errors[0]
+
+
+def test_reports_how_a_skeleton_aware_model_reads_the_file(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["inspect", "--json", str(FIXTURES / "tiny_walk.bvh")]) == 0
+    armatures = json.loads(capsys.readouterr().out)[0]["armatures"]
+    assert armatures["skeleton"] == "CMU MotionBuilder-25j"
+    assert armatures["kept"] == len(armatures["names"]) == 24
+    assert "LHipJoint" in armatures["names"]  # a joint the canonical skeleton folds away
+    assert main(["inspect", str(FIXTURES / "tiny_walk.bvh")]) == 0
+    assert "own skeleton (SAN): CMU MotionBuilder-25j, 24 joints" in capsys.readouterr().out
