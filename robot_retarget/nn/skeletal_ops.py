@@ -20,6 +20,7 @@ import torch
 from torch import nn
 from torch.nn import functional as nnf
 
+from robot_retarget.nn.temporal_padding import pad_time
 from robot_retarget.skeleton.armatures import PoolLevel
 
 Tensor = torch.Tensor
@@ -110,21 +111,9 @@ class SkeletalConv(nn.Module):
         """(B, A, C_in, T) with per-armature C_in as built (or (B, ΣC_in, T)) → (B, ΣC_out, T)."""
         if x.ndim == 4:
             x = x.flatten(1, 2)
-        k = self.kernel_size
-        if k > 1:
-            if self.causal:
-                x = torch.cat([x[..., :1].expand(-1, -1, k - 1), x], dim=-1)
-            else:
-                left, right = (k - 1) // 2, k // 2
-                x = torch.cat(
-                    [x[..., :1].expand(-1, -1, left), x, x[..., -1:].expand(-1, -1, right)], dim=-1
-                )
+        span = self.kernel_size - 1
+        x = pad_time(x, span, 0) if self.causal else pad_time(x, span // 2, span - span // 2)
         return nnf.conv1d(x, self.dense_weight(), self.bias)
-
-
-def split_armatures(x: Tensor, channels: Sequence[int]) -> list[Tensor]:
-    """(B, ΣC, T) → per armature (B, C_a, T)."""
-    return list(torch.split(x, list(channels), dim=1))
 
 
 class SkeletalPool(nn.Module):

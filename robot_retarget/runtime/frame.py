@@ -150,3 +150,14 @@ class FrameStream:
         c, s = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
         q[0] = (c * fw - s * fy, c * fx + s * fz, c * fy + s * fw, c * fz - s * fx)
         return q
+
+
+_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def unit_quaternions(q: FloatArray) -> FloatArray:
+    """Unit quaternions (…, 4); a (near-)zero one becomes the identity, so whatever a
+    sender or the network produces, the optimizer gets rotations."""
+    n = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
+    out: FloatArray = np.where(n > 1e-12, q / np.maximum(n, 1e-12), _IDENTITY)
+    return out

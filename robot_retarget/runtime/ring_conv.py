@@ -8,11 +8,17 @@ clip frame by frame gives the clip path's numbers.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.runtime.frame import F32Array
 
 Conv = tuple[FloatArray, FloatArray]  # kernel (out, in, k), bias (out,)
+
+
+def leaky_relu(x: npt.NDArray[np.floating], slope: float = 0.2) -> npt.NDArray[np.floating]:
+    """Leaky ReLU (slope below one), as between the torch models' convolutions."""
+    return np.maximum(x, slope * x)
 
 
 def f32_conv(conv: Conv) -> tuple[F32Array, F32Array]:

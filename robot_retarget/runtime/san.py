@@ -23,13 +23,18 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.runtime.frame import F32Array, FrameStream, check_frame, check_offsets
-from robot_retarget.runtime.ring_conv import Conv, RingConv
-from robot_retarget.runtime.tdcn import skeleton_height
+from robot_retarget.runtime.copy import rest_height_m
+from robot_retarget.runtime.frame import (
+    F32Array,
+    FrameStream,
+    check_frame,
+    check_offsets,
+    unit_quaternions,
+)
+from robot_retarget.runtime.ring_conv import Conv, RingConv, leaky_relu
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 
 _J = len(CANONICAL_JOINTS)
-_SLOPE = 0.2
 _ROOT = 8  # root armature channels: heading-free root rotation (4) + root movement (4)
 _IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -55,27 +60,19 @@ class SANWeights:
     shape: tuple[float, float]
 
     @property
-    def static_channels(self) -> int:
-        return int(float(self.shape[0]))
-
-    @property
     def causal(self) -> bool:
         return bool(float(self.shape[1]))
-
-
-def _lrelu(x: npt.NDArray[np.floating]) -> npt.NDArray[np.floating]:
-    return np.maximum(x, _SLOPE * x)
 
 
 def _static_features(w: SANWeights, offsets: FloatArray) -> list[FloatArray]:
     """Static features per level, (A_l, S), of a canonical skeleton's offsets (22, 3)."""
     joints = w.armature_joints.astype(np.int64)
-    x = np.concatenate([np.zeros((1, 3)), offsets[joints] / skeleton_height(offsets)])
+    x = np.concatenate([np.zeros((1, 3)), offsets[joints] / rest_height_m(offsets)])
     out: list[FloatArray] = []
     for lvl, (kern, bias) in enumerate(w.static):
         if lvl > 0:
             x = w.pools[lvl - 1] @ x
-        y = _lrelu(kern[:, :, 0] @ x.reshape(-1) + bias)
+        y = leaky_relu(kern[:, :, 0] @ x.reshape(-1) + bias)
         x = np.asarray(y, dtype=np.float64).reshape(x.shape[0], -1)
         out.append(x)
     return out
@@ -127,8 +124,8 @@ class FastSANRetargeter:
             )
         self._joints = w.armature_joints.astype(np.int64)
         a0 = len(self._joints) + 1
-        self._h_src = skeleton_height(src)
-        self._h_tgt = skeleton_height(tgt)
+        self._h_src = rest_height_m(src)
+        self._h_tgt = rest_height_m(tgt)
         s_src = _static_features(w, src)
         s_tgt = _static_features(w, tgt)
         pools = [np.asarray(p) for p in w.pools]
@@ -163,16 +160,15 @@ class FastSANRetargeter:
     ) -> tuple[FloatArray, FloatArray]:
         """One frame: (22, 4), (3,) → target rotations (22, 4) and root position (3,)."""
         q, root = check_frame(local_quats, root_pos)
-        n = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
-        q = np.where(n > 1e-12, q / np.maximum(n, 1e-12), _IDENTITY)
+        q = unit_quaternions(q)
         vel3, dyaw = self._stream.push(q, root)  # q is heading-free from here
         scaled = np.array([*(vel3 / self._h_src), dyaw])
         x = np.concatenate([q[0], (scaled - self._mean) / self._std, q[self._joints].reshape(-1)])
         enc0, enc1, dec0, dec1 = self._layers
-        h = _lrelu(enc0.step(_f32(x))).reshape(-1, self._c0)
-        h = _lrelu(enc1.step((self._pools[0] @ h).reshape(-1))).reshape(-1, self._c1)
+        h = leaky_relu(enc0.step(_f32(x))).reshape(-1, self._c0)
+        h = leaky_relu(enc1.step((self._pools[0] @ h).reshape(-1))).reshape(-1, self._c1)
         latent = (self._pools[1] @ h).reshape(-1)
-        raw = dec1.step(_lrelu(dec0.step(latent))).astype(np.float64)
+        raw = dec1.step(leaky_relu(dec0.step(latent))).astype(np.float64)
         quats = np.empty((_J, 4))
         quats[0] = raw[:4]
         quats[self._joints] = raw[_ROOT:].reshape(-1, 4)

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.runtime.copy import rest_height_m
 from robot_retarget.runtime.frame import (
     F32Array,
     FrameStream,
@@ -25,12 +26,12 @@ from robot_retarget.runtime.frame import (
     check_offsets,
     matrices,
     qmul,
+    unit_quaternions,
 )
-from robot_retarget.runtime.ring_conv import Conv, RingConv, f32_conv
+from robot_retarget.runtime.ring_conv import Conv, RingConv, f32_conv, leaky_relu
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 _J = len(CANONICAL_JOINTS)
-_SLOPE = 0.2
 
 
 @dataclass(frozen=True)
@@ -70,30 +71,8 @@ class TDCNWeights:
         return 1 + (k - 1) * int(sum(float(d) for d in self.dilations))
 
 
-def skeleton_height(offsets: FloatArray) -> float:
-    """Vertical extent of the rest pose (as robot_retarget.nn.features.skeleton_height)."""
-    from robot_retarget.skeleton.tree_tables import ancestor_matrix
-
-    y = (np.asarray(ancestor_matrix(CANONICAL_PARENTS)) @ offsets)[:, 1]
-    return float(y.max() - y.min())
-
-
-def _lrelu(x: npt.NDArray[np.floating]) -> npt.NDArray[np.floating]:
-    return np.maximum(x, _SLOPE * x)  # leaky ReLU for a slope below one
-
-
 def _canonical(q: FloatArray) -> FloatArray:
     return np.where(q[..., :1] < 0.0, -q, q)
-
-
-_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
-
-
-def _unit(q: FloatArray) -> FloatArray:
-    """Unit quaternions (…, 4); a (near-)zero one becomes the identity, so whatever a
-    sender or the network produces, the optimizer gets rotations."""
-    n = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
-    return np.where(n > 1e-12, q / np.maximum(n, 1e-12), _IDENTITY)
 
 
 class _Head:
@@ -101,8 +80,8 @@ class _Head:
 
     def __init__(self, w: TDCNWeights, src: FloatArray, tgt: FloatArray) -> None:
         self.w = w
-        self.h_src = skeleton_height(src)
-        self.h_tgt = skeleton_height(tgt)
+        self.h_src = rest_height_m(src)
+        self.h_tgt = rest_height_m(tgt)
         self.tgt_in = (tgt.reshape(-1) - w.offset_mean) / w.offset_std
 
     def inputs(self, pose: FloatArray, quats: FloatArray, vel: FloatArray) -> FloatArray:
@@ -123,8 +102,8 @@ class _Head:
         self, raw: FloatArray, quats: FloatArray, vel: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
         """Head output (…, 4J + 4) → rotations (…, J, 4) and root movement (…, 4)."""
-        raw_q = _unit(raw[..., : 4 * _J].reshape(*raw.shape[:-1], _J, 4))
-        q_b = _unit(qmul(quats, raw_q)) if self.w.residual_rotations else raw_q
+        raw_q = unit_quaternions(raw[..., : 4 * _J].reshape(*raw.shape[:-1], _J, 4))
+        q_b = unit_quaternions(qmul(quats, raw_q)) if self.w.residual_rotations else raw_q
         dv = raw[..., 4 * _J :]
         move = (vel[..., :3] / self.h_src + dv[..., :3]) * self.h_tgt
         return q_b, np.concatenate([move, vel[..., 3:] + dv[..., 3:]], axis=-1)
@@ -182,11 +161,11 @@ def run_clip(
     head = _Head(w, src, tgt)
     causal = w.causal
     x = head.inputs(pose, quats, vel).T.astype(np.float32)
-    h = _lrelu(_conv_clip(x, f32_conv(w.expand), 1, causal))
+    h = leaky_relu(_conv_clip(x, f32_conv(w.expand), 1, causal))
     for d, dil, point in zip(w.dilations[1:], w.dilated, w.pointwise, strict=True):
-        inner = _lrelu(_conv_clip(h, f32_conv(dil), int(float(d)), causal))
-        h = h + _lrelu(_conv_clip(inner, f32_conv(point), 1, causal))
-    f = _lrelu(_conv_clip(h, f32_conv(w.features), 1, causal))
+        inner = leaky_relu(_conv_clip(h, f32_conv(dil), int(float(d)), causal))
+        h = h + leaky_relu(_conv_clip(inner, f32_conv(point), 1, causal))
+    f = leaky_relu(_conv_clip(h, f32_conv(w.features), 1, causal))
     raw = _conv_clip(f, f32_conv(w.head), 1, causal).T.astype(np.float64)
     q_b, v_b = head.outputs(raw, quats, vel)
     stream = FrameStream()
@@ -246,16 +225,16 @@ class FastTDCNRetargeter:
         q, root = check_frame(local_quats, root_pos)
         # Scaled quaternions from a sender are still rotations: make them unit (the torch
         # model assumes unit input; for unit input this changes nothing beyond rounding).
-        q = _unit(q)
+        q = unit_quaternions(q)
         vel3, dyaw = self._stream.push(q, root)  # q is heading-free from here
         vel = np.array([vel3[0], vel3[1], vel3[2], dyaw])
         pose = self._kin.positions(matrices(q), self._src).reshape(-1)
         x = np.concatenate([pose, _canonical(q).reshape(-1), vel])
         x = ((x - self._mean) / self._std).astype(np.float32)
-        h = _lrelu(self._expand.step(x))
+        h = leaky_relu(self._expand.step(x))
         for dil, point in zip(self._dilated, self._pointwise, strict=True):
-            h = h + _lrelu(point.step(_lrelu(dil.step(h))))
-        raw = self._out.step(_lrelu(self._features.step(h))).astype(np.float64)
+            h = h + leaky_relu(point.step(leaky_relu(dil.step(h))))
+        raw = self._out.step(leaky_relu(self._features.step(h))).astype(np.float64)
         q_b, v_b = self._head.outputs(raw, q, vel)
         out_pos, out_yaw = self._stream.integrate(v_b[:3], float(v_b[3]))
         return self._stream.apply_heading(q_b, out_yaw), out_pos

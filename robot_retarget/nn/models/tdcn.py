@@ -55,6 +55,7 @@ from robot_retarget.nn.features import (
 from robot_retarget.nn.models.base import Prediction, RetargetModel
 from robot_retarget.nn.models.normalization import Standardizer
 from robot_retarget.nn.models.weight_export import layer_pair, to_numpy
+from robot_retarget.nn.temporal_padding import pad_time
 
 if TYPE_CHECKING:
     from robot_retarget.runtime.model import RuntimeModel
@@ -70,13 +71,6 @@ _QUAT_INIT_SCALE = 1e-2
 def receptive_field(kernel_size: int, dilations: tuple[int, ...]) -> int:
     """Frames one output sees: 1 + (k − 1)·Σ d over the temporal convolutions."""
     return 1 + (kernel_size - 1) * sum(dilations)
-
-
-def pad_time(x: Tensor, left: int, right: int) -> Tensor:
-    """Pad (B, C, T) by repeating its first frame ``left`` times and its last ``right`` times."""
-    if left == 0 and right == 0:
-        return x
-    return torch.cat([x[..., :1].expand(-1, -1, left), x, x[..., -1:].expand(-1, -1, right)], -1)
 
 
 class TemporalLayer(nn.Module):
