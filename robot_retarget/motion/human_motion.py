@@ -250,6 +250,27 @@ def load_motion(
     drop); ``up_axis`` ("y", "z", "-z", …) overrides the detected up axis; ``family`` forces a
     naming family (robot_retarget.motion.joint_map.FAMILIES).
     """
+    return load_bvh_motion(
+        path,
+        unit=unit,
+        drop_tpose=drop_tpose,
+        max_frames=max_frames,
+        up_axis=up_axis,
+        family=family,
+    )[1]
+
+
+def load_bvh_motion(
+    path: str | Path,
+    *,
+    unit: str | None = None,
+    drop_tpose: bool | Literal["auto"] = "auto",
+    max_frames: int | None = None,
+    up_axis: str | None = None,
+    family: str | None = None,
+) -> tuple[BvhClip, HumanMotion]:
+    """:func:`load_motion`, and the file as it was read: for readers of the file's own
+    skeleton (robot_retarget.motion.native_pose) without parsing it twice."""
     from robot_retarget.motion.canonicalize import canonicalize
     from robot_retarget.motion.tpose import MAX_SYNTHETIC_FRAMES
 
@@ -269,4 +290,4 @@ def load_motion(
     motion = canonicalize(clip, unit=unit, drop_tpose=drop_tpose, up_axis=up_axis, family=family)
     if max_frames is not None and motion.num_frames > max_frames:
         motion = motion.frames(0, max_frames)
-    return motion
+    return clip, motion

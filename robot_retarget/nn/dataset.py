@@ -40,8 +40,8 @@ import torch
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError, RetargetError
-from robot_retarget.motion import HumanMotion, load_motion
-from robot_retarget.motion.bvh import read_bvh
+from robot_retarget.motion import HumanMotion
+from robot_retarget.motion.human_motion import load_bvh_motion
 from robot_retarget.motion.native_pose import NativePose, native_pose
 from robot_retarget.nn.features import MotionFeatures, compute_features
 from robot_retarget.nn.models.batch import RetargetBatch
@@ -251,12 +251,12 @@ def _loader_fingerprint() -> str:
 
 def _load_clip(path: Path, root: Path, fps: float, max_frames: int | None) -> Clip:
     try:
-        motion = load_motion(path, max_frames=max_frames)
+        bvh, motion = load_bvh_motion(path, max_frames=max_frames)
     except MotionFormatError as exc:
         raise DatasetError(f"cannot load a clip of the data set: {exc}", path=path) from exc
     native: NativePose | None
     try:
-        native = native_pose(read_bvh(path), motion)
+        native = native_pose(bvh, motion)
     except TopologyError:
         native = None  # no skeleton-aware view of this file; every other model still uses it
     if abs(motion.fps - fps) > 1e-3 * fps:

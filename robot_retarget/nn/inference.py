@@ -171,10 +171,11 @@ def retarget_clip(
     def tensor(a: FloatArray) -> torch.Tensor:
         return torch.tensor(a[None], device=dev)
 
-    domain = None if native is None else native_domain(net, native, t)
     net.eval()
     with torch.inference_mode():
-        if native is not None and domain is not None and isinstance(net, SAN):
+        if native is not None:
+            domain = native_domain(net, native, t)
+            assert isinstance(net, SAN)  # native_domain refuses every other model
             out = net.forward_native(
                 domain,
                 tensor(q),

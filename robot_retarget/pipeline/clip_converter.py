@@ -21,8 +21,9 @@ from typing import TYPE_CHECKING
 from robot_retarget.errors import ModelLoadError, RetargetError
 
 if TYPE_CHECKING:
+    from robot_retarget.motion.bvh import BvhClip
     from robot_retarget.motion.human_motion import HumanMotion
-    from robot_retarget.nn.inference import LoadedModel
+    from robot_retarget.nn.models.san import SAN
     from robot_retarget.pipeline.precomputed_step import PrecomputedStep
 
 Progress = Callable[[int, int], None]
@@ -116,13 +117,14 @@ class ClipConverter:
     ) -> ClipReport:
         from robot_retarget.cli.output_paths import StagedWrites
         from robot_retarget.keypoints.lift import load_keypoint_motion
-        from robot_retarget.motion.human_motion import load_motion
+        from robot_retarget.motion.human_motion import load_bvh_motion, load_motion
         from robot_retarget.pipeline.convert import convert_motion
         from robot_retarget.pipeline.robot_bvh import write_robot_bvh
         from robot_retarget.render.preview import render_preview
         from robot_retarget.sources.keypoints import is_keypoint_input
 
         opt, config, clip = self.options, self.config, job.clip
+        network: _OwnSkeletonNetwork | None = None
         if is_keypoint_input(clip):
             lifted = load_keypoint_motion(
                 clip, model=opt.keypoint_model, fps=opt.keypoint_fps, max_frames=opt.max_frames
@@ -134,18 +136,18 @@ class ClipConverter:
                     f"{lifted.missing_fraction:.1%} of points missing, {lifted.frames_held} "
                     "frame(s) without a body (the last seen pose held)"
                 )
+        elif self.native_model is not None:
+            bvh, motion = load_bvh_motion(clip, max_frames=opt.max_frames)
+            network = self._read_on_own_skeleton(clip, bvh, motion, log)
         else:
             motion = load_motion(clip, max_frames=opt.max_frames)
-        network = None
-        if self.native_model is not None and not is_keypoint_input(clip):
-            network = self._read_on_own_skeleton(clip, motion, log)
         result = convert_motion(
-            motion,
+            motion if network is None else network.motion,
             self.step,
             fps=opt.fps,
             progress=progress,
             lead_in_speed_fraction=0.25 if opt.lead_in else None,
-            network=network,
+            network=None if network is None else network.step,
         )
         traj = result.trajectory
         folders = job.make_folders
@@ -192,11 +194,11 @@ class ClipConverter:
         )
 
     def _read_on_own_skeleton(
-        self, clip: Path, motion: HumanMotion, log: Callable[[str], None] | None
-    ) -> PrecomputedStep | None:
-        """The skeleton-aware model run over ``clip`` read on the file's own skeleton, at the
-        output rate; None (the canonical joints, with a note) when it has no encoder for it."""
-        from robot_retarget.motion.bvh import read_bvh
+        self, clip: Path, bvh: BvhClip, motion: HumanMotion, log: Callable[[str], None] | None
+    ) -> _OwnSkeletonNetwork | None:
+        """The skeleton-aware model run over ``clip`` read on the file's own skeleton (``bvh``),
+        at the output rate, with ``motion`` resampled to it; None (the canonical joints, with a
+        note) when it has no encoder for that skeleton."""
         from robot_retarget.motion.native_pose import native_pose
         from robot_retarget.nn.inference import retarget_clip
         from robot_retarget.pipeline.precomputed_step import PrecomputedStep
@@ -204,13 +206,12 @@ class ClipConverter:
 
         assert self.native_model is not None
         try:
-            native = native_pose(read_bvh(clip), motion)
+            native = native_pose(bvh, motion)
         except TopologyError as exc:
             if log is not None:
                 log(f"{clip}: not read on its own skeleton ({exc}); the canonical joints")
             return None
-        net = self.native_model.model
-        domain = getattr(net, "domain_of", lambda _t: None)(native.topology)
+        domain = self.native_model.domain_of(native.topology)
         if domain is None:
             if log is not None:
                 log(
@@ -227,10 +228,18 @@ class ClipConverter:
         )
         if log is not None:
             log(f"{clip}: read on its own skeleton ({domain}) by {self.model.name}")
-        return PrecomputedStep(quats, root)
+        return _OwnSkeletonNetwork(m, PrecomputedStep(quats, root))
 
 
-def _skeleton_aware(model: object) -> LoadedModel | None:
+@dataclass(frozen=True)
+class _OwnSkeletonNetwork:
+    """A clip at the output rate and the network's frames for it, read on its own skeleton."""
+
+    motion: HumanMotion
+    step: PrecomputedStep
+
+
+def _skeleton_aware(model: object) -> SAN | None:
     """The torch model behind ``model`` if it reads files on their own skeletons (SAN) and
     torch is installed; else None (the canonical joints, as everywhere else)."""
     from robot_retarget.runtime.model import RuntimeModel
@@ -243,11 +252,11 @@ def _skeleton_aware(model: object) -> LoadedModel | None:
     except ImportError:
         return None
     if isinstance(model, LoadedModel):
-        return model if isinstance(model.model, SAN) else None
+        return model.model if isinstance(model.model, SAN) else None
     assert isinstance(model, RuntimeModel)
     source = model.path.with_suffix(".pt") if model.path is not None else None
     try:
         loaded = load_model(str(source) if source is not None and source.is_file() else model.name)
     except ModelLoadError:
         return None  # only its numpy runtime is here: the canonical joints
-    return loaded if isinstance(loaded.model, SAN) else None
+    return loaded.model if isinstance(loaded.model, SAN) else None
