@@ -21,7 +21,7 @@ HELP = "Subject-level cross-validation: train per fold, score unseen performers.
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from robot_retarget.nn.dataset import DEFAULT_FPS, DEFAULT_ROBOTS, DEFAULT_WINDOW_FRAMES
-    from robot_retarget.nn.models.training import LEARNING_RATE
+    from robot_retarget.nn.models.optimizers import LEARNING_RATE
 
     parser.add_argument(
         "--model",

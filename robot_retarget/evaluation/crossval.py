@@ -54,7 +54,7 @@ from robot_retarget.nn.dataset import (
     robot_skeletons,
 )
 from robot_retarget.nn.inference import load_model
-from robot_retarget.nn.models.training import LEARNING_RATE
+from robot_retarget.nn.models.optimizers import LEARNING_RATE
 from robot_retarget.nn.train import TRAINABLE_MODELS, TrainConfig, TrainProgress, train
 
 CROSSVAL_JSON = "crossval.json"

@@ -64,17 +64,13 @@ from robot_retarget.nn.features import compute_features, skeleton_height
 from robot_retarget.nn.losses import end_effector_weights, reconstruction_loss, squared_error
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.batch import RetargetBatch
+from robot_retarget.nn.models.optimizers import LEARNING_RATE, make_optimizers
 from robot_retarget.nn.models.registry import (
     build_discriminator,
     build_model,
     has_discriminator,
 )
-from robot_retarget.nn.models.training import (
-    LEARNING_RATE,
-    check_loss_weights,
-    make_optimizers,
-    training_step,
-)
+from robot_retarget.nn.models.training import check_loss_weights, training_step
 from robot_retarget.nn.retarget_losses import bone_direction_loss, contact_loss, effector_loss
 from robot_retarget.nn.train_log import TrainLog
 

@@ -28,11 +28,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import torch
-from torch import nn
 
 from robot_retarget.nn.features import MotionFeatures, compute_features, skeleton_height
 from robot_retarget.nn.losses import masked_mean
 from robot_retarget.nn.models.batch import RetargetBatch
+from robot_retarget.nn.models.optimizers import update_generator
 from robot_retarget.nn.models.san import SAN
 from robot_retarget.nn.models.tdcn_training import metric_losses
 from robot_retarget.nn.patch_discriminator import (
@@ -45,7 +45,7 @@ from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
 from robot_retarget.skeleton.canonical import END_EFFECTORS as CANONICAL_END_EFFECTORS
 
 if TYPE_CHECKING:
-    from robot_retarget.nn.models.training import Optimizers
+    from robot_retarget.nn.models.optimizers import Optimizers
 
 Tensor = torch.Tensor
 
@@ -153,10 +153,7 @@ def san_training_step(
     adversarial = w.adversarial * torch.where(other, lsgan, torch.zeros_like(lsgan))
     extra = metric_losses(model, batch, src, out_b, w, fps)
     total = (rec + ee + ltc + adversarial + sum(extra.values())).mean()
-    optimizers.generator.zero_grad(set_to_none=True)
-    total.backward()  # type: ignore[no-untyped-call]
-    nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
-    optimizers.generator.step()
+    update_generator(optimizers, model, total, w.grad_clip_norm)
 
     losses = {
         "total": float(total.detach()),

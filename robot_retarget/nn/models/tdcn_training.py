@@ -37,7 +37,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 import torch
-from torch import nn
 from torch.nn import functional as nnf
 
 from robot_retarget.nn.corruption import CorruptionRanges, corrupt_batch
@@ -49,6 +48,7 @@ from robot_retarget.nn.features import (
 )
 from robot_retarget.nn.losses import TWIST_ALPHA_RAD, masked_mean, twist_loss
 from robot_retarget.nn.models.batch import RetargetBatch
+from robot_retarget.nn.models.optimizers import update_generator
 from robot_retarget.nn.models.tdcn import TDCN
 from robot_retarget.nn.patch_discriminator import (
     PatchDiscriminator,
@@ -67,7 +67,7 @@ from robot_retarget.nn.retarget_losses import (
 
 if TYPE_CHECKING:
     from robot_retarget.nn.models.base import RetargetModel, RetargetOutput
-    from robot_retarget.nn.models.training import Optimizers
+    from robot_retarget.nn.models.optimizers import Optimizers
 
 Tensor = torch.Tensor
 
@@ -228,10 +228,7 @@ def tdcn_training_step(
     ).mean(-1)
     extra = metric_losses(model, batch, src, out_b, w, fps)
     total = (cycle + twist + height + adversarial + reg + orient + sum(extra.values())).mean()
-    optimizers.generator.zero_grad(set_to_none=True)
-    total.backward()  # type: ignore[no-untyped-call]
-    nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
-    optimizers.generator.step()
+    update_generator(optimizers, model, total, w.grad_clip_norm)
 
     losses = {
         "total": float(total.detach()),

@@ -2,7 +2,7 @@
 
 A ``train`` command only loops: draw a :class:`RetargetBatch`, call :func:`training_step`, log
 the returned losses. Both papers train with Adam, learning rate 1e-4, for generator and
-discriminator (:func:`make_optimizers`).
+discriminator (robot_retarget.nn.models.optimizers.make_optimizers).
 
 NKN (eq. 10): cycle C + R + λ J + ω S with R the square loss ‖x̂_B − x_A‖² where B = A and
 β log(1 − r_B) otherwise (β = 0.001), twist J (α = 100°, λ = 10), smoothing S (ω = 0.01);
@@ -58,6 +58,10 @@ from robot_retarget.nn.losses import (
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.batch import RetargetBatch
 from robot_retarget.nn.models.nkn import NKN
+from robot_retarget.nn.models.optimizers import (
+    Optimizers,
+    update_generator,
+)
 from robot_retarget.nn.models.pmnet import PMnet
 from robot_retarget.nn.models.residual import ResidualRetargeter
 from robot_retarget.nn.models.san import SAN
@@ -77,29 +81,7 @@ from robot_retarget.nn.retarget_losses import (
 
 Tensor = torch.Tensor
 
-LEARNING_RATE = 1e-4
 DEFAULT_FPS = 30.0
-
-
-@dataclass(frozen=True)
-class Optimizers:
-    """The generator's (retargeting model's) and the discriminator's optimisers."""
-
-    generator: torch.optim.Optimizer
-    discriminator: torch.optim.Optimizer | None
-
-
-def make_optimizers(
-    model: nn.Module, discriminator: nn.Module | None, lr: float = LEARNING_RATE
-) -> Optimizers:
-    """Adam for both networks (both papers: learning rate 1e-4); a model trained without a
-    discriminator gets none."""
-    return Optimizers(
-        generator=torch.optim.Adam(model.parameters(), lr=lr),
-        discriminator=(
-            None if discriminator is None else torch.optim.Adam(discriminator.parameters(), lr=lr)
-        ),
-    )
 
 
 @dataclass(frozen=True)
@@ -184,10 +166,7 @@ def nkn_training_step(
         + velocity_smoothing_loss(out_a.features.root_vel)
     )
     total = (cycle + r_term + twist + smooth).mean()
-    optimizers.generator.zero_grad(set_to_none=True)
-    total.backward()  # type: ignore[no-untyped-call]
-    nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
-    optimizers.generator.step()
+    update_generator(optimizers, model, total, w.grad_clip_norm)
 
     losses = {
         "total": float(total.detach()),
@@ -356,10 +335,7 @@ def residual_training_step(
         + w.root * root
         + rot
     ).mean()
-    optimizers.generator.zero_grad(set_to_none=True)
-    total.backward()  # type: ignore[no-untyped-call]
-    nn.utils.clip_grad_norm_(model.parameters(), w.grad_clip_norm)
-    optimizers.generator.step()
+    update_generator(optimizers, model, total, w.grad_clip_norm)
     return {
         "total": float(total.detach()),
         "effector": float(effector.detach().mean()),

@@ -12,9 +12,10 @@ import torch
 
 from robot_retarget.nn.dataset import WindowSampler, fit_features, load_dataset
 from robot_retarget.nn.inference import retarget_clip
+from robot_retarget.nn.models.optimizers import make_optimizers
 from robot_retarget.nn.models.registry import build_discriminator, build_model
 from robot_retarget.nn.models.san import SAN
-from robot_retarget.nn.models.training import make_optimizers, training_step
+from robot_retarget.nn.models.training import training_step
 from robot_retarget.nn.train import native_domains
 from robot_retarget.skeleton.armatures import TopologyError
 from tests.nn.conftest import make_mocap_dir

@@ -96,8 +96,9 @@ def test_height_loss_is_zero_for_the_same_motion_at_any_size() -> None:
 
 
 def test_metric_losses_join_the_paper_objective_only_when_weighted() -> None:
+    from robot_retarget.nn.models.optimizers import make_optimizers
     from robot_retarget.nn.models.registry import build_discriminator
-    from robot_retarget.nn.models.training import make_optimizers, training_step
+    from robot_retarget.nn.models.training import training_step
     from tests.nn.models.conftest import make_batch
 
     batch = make_batch(frames=40)

@@ -9,9 +9,9 @@ import torch
 
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.batch import RetargetBatch
+from robot_retarget.nn.models.optimizers import make_optimizers
 from robot_retarget.nn.models.training import (
     NKNLossWeights,
-    make_optimizers,
     nkn_training_step,
     training_step,
 )
