@@ -60,6 +60,6 @@ def retarget(
         loaded = load_runtime_model(os.fspath(model) if model is not None else default_model_name())
     else:
         loaded = model
-    step = RetargetStep(config, loaded, motion.skeleton)
+    step = RetargetStep(config, loaded, motion.skeleton, rate_hz=fps)
     result = convert_motion(motion, step, fps=fps)
     return RetargetResult(result.trajectory, result, loaded.name)

@@ -148,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
         keypoint_model=args.keypoint_model,
     )
     model = load_runtime_model(args.model or default_model_name())
-    step = RetargetStep(config, model, default_canonical_skeleton())
+    step = RetargetStep(config, model, default_canonical_skeleton(), rate_hz=args.rate)
     step.retargeter.warm_up()  # compile / page in before real time
     backend = open_backend(config, args.backend, args.port, fix_registers=args.fix_registers)
 

@@ -26,7 +26,7 @@ import torch
 
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.nn.models.base import RetargetModel
-from robot_retarget.nn.models.registry import build_model
+from robot_retarget.nn.models.registry import build_model, model_class
 
 FORMAT = "robot-retarget-model"
 VERSION = 1
@@ -113,7 +113,7 @@ def load_checkpoint(path: str | Path, *, expected_data_hash: str | None = None) 
         raise ModelLoadError(f"checkpoint lacks {', '.join(missing)}", path=source)
     name = payload["model"]
     try:
-        model = build_model(name, **payload["config"])
+        model = build_model(name, **model_class(name).upgrade_config(dict(payload["config"])))
     except ModelLoadError as exc:
         raise ModelLoadError(str(exc), path=source, model=name) from exc
     try:

@@ -93,7 +93,9 @@ class ClipConverter:
         self.options = options
         self.config = load_robot_config(options.robot)
         self.model = load_runtime_model(options.model)
-        self.step = RetargetStep(self.config, self.model, default_canonical_skeleton())
+        self.step = RetargetStep(
+            self.config, self.model, default_canonical_skeleton(), rate_hz=options.fps
+        )
         self.native_model = None if options.canonical_input else _skeleton_aware(self.model)
 
     def convert(

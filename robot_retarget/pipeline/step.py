@@ -64,8 +64,12 @@ class RetargetStep:
         source_skeleton: Skeleton,
         *,
         retargeter: Retargeter | None = None,
+        rate_hz: float | None = None,
     ) -> None:
         self.config = config
+        # The rate frames arrive at (default: the config's control rate): the network's foot
+        # lock turns a frame's displacement into a speed with it.
+        self.rate_hz = float(rate_hz) if rate_hz is not None else config.control_rate_hz
         # A name or path: the numpy runtime when there is one (no torch), else torch.
         self.model = load_runtime_model(model) if isinstance(model, str) else model
         self.robot_skeleton = robot_canonical_skeleton(config)
@@ -81,7 +85,10 @@ class RetargetStep:
         Models with a numpy runtime (:mod:`robot_retarget.runtime`) run without torch; the
         others step through torch; the same numbers either way (tested)."""
         self.online: OnlineStep = online_retargeter(
-            self.model, source_skeleton.offsets, self.robot_skeleton.offsets
+            self.model,
+            source_skeleton.offsets,
+            self.robot_skeleton.offsets,
+            frame_rate_hz=self.rate_hz,
         )
 
     def warm_up(self, frames: int = 3) -> None:

@@ -60,7 +60,10 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     config = load_robot_config(args.robot)
     motion = demo_motion(fps=30.0)
     step = RetargetStep(
-        config, load_runtime_model(args.model or default_model_name()), motion.skeleton
+        config,
+        load_runtime_model(args.model or default_model_name()),
+        motion.skeleton,
+        rate_hz=args.rate,
     )
     step.retargeter.warm_up()
     variants = ["plain", "view"] if args.view else ["plain"]

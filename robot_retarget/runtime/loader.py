@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy.typing as npt
 
 from robot_retarget.runtime.model import OnlineStep, RuntimeModel, load_runtime
+from robot_retarget.skeleton.foot_lock_spec import CONTACT_FPS
 
 if TYPE_CHECKING:
     from robot_retarget.nn.inference import LoadedModel
@@ -78,15 +79,18 @@ def online_retargeter(
     model: RuntimeModel | LoadedModel | RetargetModel,
     source_offsets: npt.ArrayLike,
     target_offsets: npt.ArrayLike,
+    *,
+    frame_rate_hz: float = CONTACT_FPS,
 ) -> OnlineStep:
-    """The live network step for ``model``: its numpy runtime when it has one (chosen by the
-    model, :meth:`RetargetModel.runtime`), else the torch model stepped frame by frame."""
+    """The live network step for ``model``, run at ``frame_rate_hz``: its numpy runtime when
+    it has one (chosen by the model, :meth:`RetargetModel.runtime`), else the torch model
+    stepped frame by frame (which judges speeds at the 30 fps it was trained at)."""
     if isinstance(model, RuntimeModel):
-        return model.online(source_offsets, target_offsets)
+        return model.online(source_offsets, target_offsets, frame_rate_hz=frame_rate_hz)
     from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
 
     net = model.model if isinstance(model, LoadedModel) else model
     runtime = net.runtime()
     if runtime is not None:
-        return runtime.online(source_offsets, target_offsets)
+        return runtime.online(source_offsets, target_offsets, frame_rate_hz=frame_rate_hz)
     return OnlineRetargeter(model, source_offsets, target_offsets)

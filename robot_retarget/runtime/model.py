@@ -32,9 +32,11 @@ from robot_retarget.runtime.copy import FastCopyRetargeter, rest_height_m
 from robot_retarget.runtime.frame import check_offsets
 from robot_retarget.runtime.npz_file import read_runtime_npz, write_runtime_npz
 from robot_retarget.runtime.pmnet import FastPMnetRetargeter, PMnetWeights
-from robot_retarget.runtime.residual import FastResidualRetargeter, ResidualWeights
+from robot_retarget.runtime.residual import FastResidualRetargeter
+from robot_retarget.runtime.residual_weights import ResidualWeights
 from robot_retarget.runtime.san import FastSANRetargeter, SANWeights
 from robot_retarget.runtime.tdcn import FastTDCNRetargeter, TDCNWeights
+from robot_retarget.skeleton.foot_lock_spec import CONTACT_FPS
 
 FORMAT_VERSION = 1
 Weights = ResidualWeights | PMnetWeights | TDCNWeights | SANWeights
@@ -50,38 +52,37 @@ class OnlineStep(Protocol):
     ) -> tuple[FloatArray, FloatArray]: ...
 
 
-def _copy(_w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+def _copy(_w: Weights | None, src: FloatArray, tgt: FloatArray, _rate: float) -> OnlineStep:
     return FastCopyRetargeter(src, tgt, 1.0)
 
 
-def _copy_scaled(_w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+def _copy_scaled(_w: Weights | None, src: FloatArray, tgt: FloatArray, _rate: float) -> OnlineStep:
     return FastCopyRetargeter(src, tgt, rest_height_m(tgt) / rest_height_m(src))
 
 
-def _residual(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+def _residual(w: Weights | None, src: FloatArray, tgt: FloatArray, rate: float) -> OnlineStep:
     assert isinstance(w, ResidualWeights)  # guaranteed by RuntimeModel.__post_init__
-    return FastResidualRetargeter(w, src, tgt)
+    return FastResidualRetargeter(w, src, tgt, frame_rate_hz=rate)
 
 
-def _pmnet(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+def _pmnet(w: Weights | None, src: FloatArray, tgt: FloatArray, _rate: float) -> OnlineStep:
     assert isinstance(w, PMnetWeights)
     return FastPMnetRetargeter(w, src, tgt)
 
 
-def _tdcn(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+def _tdcn(w: Weights | None, src: FloatArray, tgt: FloatArray, _rate: float) -> OnlineStep:
     assert isinstance(w, TDCNWeights)
     return FastTDCNRetargeter(w, src, tgt)
 
 
-def _san(w: Weights | None, src: FloatArray, tgt: FloatArray) -> OnlineStep:
+def _san(w: Weights | None, src: FloatArray, tgt: FloatArray, _rate: float) -> OnlineStep:
     assert isinstance(w, SANWeights)
     return FastSANRetargeter(w, src, tgt)
 
 
-# architecture → (weights class or None, step factory)
-ARCHITECTURES: dict[
-    str, tuple[type[Weights] | None, Callable[[Weights | None, FloatArray, FloatArray], OnlineStep]]
-] = {
+# architecture → (weights class or None, step factory (weights, source, target, frame rate))
+StepFactory = Callable[[Weights | None, FloatArray, FloatArray, float], OnlineStep]
+ARCHITECTURES: dict[str, tuple[type[Weights] | None, StepFactory]] = {
     "copy": (None, _copy),
     "copy-scaled": (None, _copy_scaled),
     "residual": (ResidualWeights, _residual),
@@ -121,11 +122,19 @@ class RuntimeModel:
                 path=self.path,
             )
 
-    def online(self, source_offsets: npt.ArrayLike, target_offsets: npt.ArrayLike) -> OnlineStep:
-        """The per-frame step for a performer (source) and robot (target) rest skeleton."""
+    def online(
+        self,
+        source_offsets: npt.ArrayLike,
+        target_offsets: npt.ArrayLike,
+        *,
+        frame_rate_hz: float = CONTACT_FPS,
+    ) -> OnlineStep:
+        """The per-frame step for a performer (source) and robot (target) rest skeleton, run at
+        ``frame_rate_hz`` (what a step that judges speeds, the residual model's foot lock,
+        needs; default: the 30 fps the models are trained at)."""
         src = check_offsets("source_offsets", source_offsets)
         tgt = check_offsets("target_offsets", target_offsets)
-        return ARCHITECTURES[self.architecture][1](self.weights, src, tgt)
+        return ARCHITECTURES[self.architecture][1](self.weights, src, tgt, frame_rate_hz)
 
 
 # ----------------------------------------------------------------------------- file format
@@ -163,6 +172,8 @@ def _read_weights(kind: type[Weights], arrays: dict[str, np.ndarray], path: Path
     """The weights dataclass from its dotted arrays: nested tuples are found by index."""
     values: dict[str, Any] = {}
     for f in dataclasses.fields(kind):
+        if f.name not in arrays and f.default is not dataclasses.MISSING:
+            continue  # a field added since the file was written: its default
         if f.name in arrays:
             a = arrays[f.name]
             values[f.name] = a.item() if a.ndim == 0 else np.asarray(a, dtype=np.float64)

@@ -13,14 +13,13 @@ root velocity and integration as ``FeatureStream`` (:class:`FrameStream`). Its o
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.runtime.copy import rest_height_m
+from robot_retarget.runtime.foot_lock_graph import LEG_JOINTS, STATE_SIZE, foot_lock_function
 from robot_retarget.runtime.frame import (
     NUM_JOINTS,
     F32Array,
@@ -29,28 +28,11 @@ from robot_retarget.runtime.frame import (
     check_offsets,
 )
 from robot_retarget.runtime.residual_graphs import residual_stages
-from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
+from robot_retarget.runtime.residual_weights import ResidualWeights
+from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.foot_lock_spec import CONTACT_FPS
 
 _J = NUM_JOINTS
-
-
-@dataclass(frozen=True)
-class ResidualWeights:
-    """A residual model's parameters as float64 numpy arrays, for numpy twins of its step
-    (here): every Linear as (weight, bias) in order."""
-
-    denoiser_layers: tuple[tuple[FloatArray, FloatArray], ...]
-    denoiser_history: int
-    pose_mean: FloatArray
-    pose_std: FloatArray
-    rot_mean: FloatArray
-    rot_std: FloatArray
-    offset_mean: FloatArray
-    offset_std: FloatArray
-    correction_layers: tuple[tuple[FloatArray, FloatArray], ...]
-    to_delta: tuple[FloatArray, FloatArray]
-    max_correction_rad: float
-    root_taps: FloatArray
 
 
 def _affine(weight: FloatArray, bias: FloatArray, *, keep_one: bool) -> FloatArray:
@@ -75,6 +57,7 @@ class FastResidualRetargeter:
         target_offsets: npt.ArrayLike,
         *,
         jit: bool = True,
+        frame_rate_hz: float = CONTACT_FPS,
     ) -> None:
         src = check_offsets("source_offsets", source_offsets)
         tgt = check_offsets("target_offsets", target_offsets)
@@ -107,6 +90,11 @@ class FastResidualRetargeter:
         self._den_layers = _denoiser_layers(w, k)
         self._layers = _correction_layers(w, src, tgt, h_src, h_tgt)
         self._root_taps = w.root_taps
+        self._lock = (
+            _FootLockStep(self._output.res[0], src, tgt, frame_rate_hz, jit=jit)
+            if w.foot_lock
+            else None
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -114,6 +102,8 @@ class FastResidualRetargeter:
         self._started = False
         self._vel_past = np.zeros((len(self._root_taps), 3))  # newest first
         self._stream.reset()
+        if self._lock is not None:
+            self._lock.reset()
 
     def step(
         self, local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
@@ -146,7 +136,58 @@ class FastResidualRetargeter:
             self._root_taps @ window * self._ratio, dyaw
         )
         self._output()
+        if self._lock is not None:
+            self._lock(q_in, root, out_pos, self._out)
         return self._out.copy(), out_pos
+
+
+class _FootLockStep:
+    """The foot lock (:mod:`robot_retarget.runtime.foot_lock_graph`) bound to a step's
+    output array: it rewrites the legs' rotations in place."""
+
+    def __init__(
+        self, q_out: FloatArray, src: FloatArray, tgt: FloatArray, rate_hz: float, *, jit: bool
+    ) -> None:
+        if not rate_hz > 0.0:
+            raise ValueError(f"frame_rate_hz must be positive, got {rate_hz}")
+        n = np.linalg.norm(src, axis=-1)
+        leg = 0.5 * (n[Joint.LeftLeg] + n[Joint.LeftFoot] + n[Joint.RightLeg] + n[Joint.RightFoot])
+        self._q_src = np.zeros(4 * _J)
+        self._root_src = np.zeros(3)
+        self._root_out = np.zeros(3)
+        self._state = np.zeros(STATE_SIZE)
+        self._first = np.ones(1)
+        self._fn = CompiledFunction(
+            foot_lock_function(jit=jit),
+            args=[
+                self._q_src,
+                self._root_src,
+                np.ascontiguousarray(src.reshape(-1)),
+                q_out,
+                self._root_out,
+                np.ascontiguousarray(tgt.reshape(-1)),
+                np.array([leg]),
+                np.array([float(rate_hz)]),
+                self._state,
+                self._first,
+            ],
+        )
+        legs, self._state_next = self._fn.res
+        self._legs = legs.reshape(-1, 4)
+
+    def reset(self) -> None:
+        self._first[0] = 1.0
+
+    def __call__(
+        self, q_src: FloatArray, root_src: FloatArray, root_out: FloatArray, out: FloatArray
+    ) -> None:
+        self._q_src[...] = q_src.reshape(-1)
+        self._root_src[...] = root_src
+        self._root_out[...] = root_out
+        self._fn()
+        self._state[...] = self._state_next
+        self._first[0] = 0.0
+        out[LEG_JOINTS, :] = self._legs
 
 
 def _denoiser_layers(w: ResidualWeights, history: int) -> list[F32Array]:

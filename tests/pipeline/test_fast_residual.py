@@ -21,6 +21,7 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.runtime.loader import online_retargeter
 from robot_retarget.runtime.residual import FastResidualRetargeter
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
+from robot_retarget.skeleton.foot_lock_spec import LEGS
 from tests.pipeline.stream_equality import assert_same_stream
 
 # float32 torch against float64 numpy; outputs are unit quaternions and metres.
@@ -54,6 +55,45 @@ def test_equals_the_torch_model_on_the_demo(demo: HumanMotion, op3: RobotConfig)
     _assert_same_stream(
         _trained_like(), demo.skeleton.offsets, tgt, demo.local_quats[:n], demo.root_pos[:n]
     )
+
+
+def test_the_demo_exercises_the_foot_lock(demo: HumanMotion, op3: RobotConfig) -> None:
+    """The equality above covers the lock: on the demo its legs differ from the unlocked model's
+    (both through the numpy step)."""
+    tgt = robot_canonical_skeleton(op3).offsets
+    outputs = []
+    for lock in (True, False):
+        model = _trained_like()
+        assert isinstance(model.model, ResidualRetargeter)
+        if not lock:
+            model.model.lock = None
+        fast = online_retargeter(model, demo.skeleton.offsets, tgt)
+        frames = zip(demo.local_quats, demo.root_pos, strict=True)
+        outputs.append(np.array([fast.step(q, r)[0] for q, r in frames]))
+    angle = quat.angle_between(outputs[0], outputs[1])
+    legs = [j for leg in LEGS for j in leg]
+    assert angle[:, legs].max() > 1e-3
+    assert np.delete(angle, legs, axis=1).max() < 1e-9
+
+
+def test_the_foot_lock_judges_speed_at_the_rate_it_runs(
+    demo: HumanMotion, op3: RobotConfig
+) -> None:
+    """The same frames at four times the rate are four times slower motion: more of it counts
+    as planted, so the legs differ (and only they); a rate that is not positive is refused."""
+    tgt = robot_canonical_skeleton(op3).offsets
+    weights = _trained_like().model.export_weights()
+    out = []
+    for rate in (30.0, 120.0):
+        fast = FastResidualRetargeter(weights, demo.skeleton.offsets, tgt, frame_rate_hz=rate)
+        frames = zip(demo.local_quats, demo.root_pos, strict=True)
+        out.append(np.array([fast.step(q, r)[0] for q, r in frames]))
+    angle = quat.angle_between(out[0], out[1])
+    legs = [j for leg in LEGS for j in leg]
+    assert angle[:, legs].max() > 1e-3
+    assert np.delete(angle, legs, axis=1).max() < 1e-9
+    with pytest.raises(ValueError, match="frame_rate_hz"):
+        FastResidualRetargeter(weights, demo.skeleton.offsets, tgt, frame_rate_hz=0.0)
 
 
 @settings(max_examples=10, deadline=None)

@@ -15,7 +15,8 @@ from robot_retarget.casadi_jit import CompiledFunction, compile_graph
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.geometry import symbolic_quaternion as sq
 from robot_retarget.runtime.loader import load_runtime_model
-from robot_retarget.runtime.residual import FastResidualRetargeter, ResidualWeights
+from robot_retarget.runtime.residual import FastResidualRetargeter
+from robot_retarget.runtime.residual_weights import ResidualWeights
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 
 

@@ -109,6 +109,12 @@ class RetargetModel(nn.Module, ABC):
     def config(self) -> dict[str, Any]:
         """Constructor keyword arguments that rebuild this model (JSON-compatible values)."""
 
+    @classmethod
+    def upgrade_config(cls, config: dict[str, Any]) -> dict[str, Any]:
+        """A stored :meth:`config` made current: a key added since then gets the value that
+        rebuilds the model the checkpoint was trained as (not the new default)."""
+        return config
+
     @abstractmethod
     def retarget(self, src: MotionFeatures, src_offsets: Tensor, tgt_offsets: Tensor) -> Prediction:
         """Predict the target's heading-free rotations and root velocities for whole clips."""

@@ -54,12 +54,18 @@ def _lookup(name: str, table: dict[str, Any], what: str) -> Any:
         ) from None
 
 
+def model_class(name: str) -> type[RetargetModel]:
+    """The model class registered as ``name``; ModelLoadError for an unknown name."""
+    cls: type[RetargetModel] = _lookup(name, MODELS, "model")
+    return cls
+
+
 def build_model(name: str, **config: Any) -> RetargetModel:
     """A fresh model by name; ``config`` overrides the constructor's (paper) defaults.
 
     Raises ModelLoadError for an unknown name or configuration key.
     """
-    cls: type[RetargetModel] = _lookup(name, MODELS, "model")
+    cls = model_class(name)
     allowed = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
     unknown = sorted(set(config) - set(allowed))
     if unknown:

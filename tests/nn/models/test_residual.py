@@ -11,16 +11,19 @@ import torch
 from robot_retarget.nn import quaternion_torch as qt
 from robot_retarget.nn.features import compute_features
 from robot_retarget.nn.models.base import RetargetModel
+from robot_retarget.nn.models.foot_lock import LEGS
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.nn.models.residual import CausalRotationDenoiser, ResidualRetargeter
 
 Motion = Callable[..., tuple[torch.Tensor, torch.Tensor]]
 
 
+@pytest.mark.parametrize("foot_lock", [False, True])
 def test_untrained_model_is_copy_scaled(
-    motion: Motion, skeleton_pair: tuple[torch.Tensor, torch.Tensor]
+    motion: Motion, skeleton_pair: tuple[torch.Tensor, torch.Tensor], foot_lock: bool
 ) -> None:
-    model = build_model("residual", hidden_size=16, num_layers=2).eval()
+    """Untrained, the model is copy-scaled; its foot lock then turns only the legs."""
+    model = build_model("residual", hidden_size=16, num_layers=2, foot_lock=foot_lock).eval()
     baseline = build_model("copy-scaled")
     src, tgt = skeleton_pair
     quats, root = motion(2, 15)
@@ -29,7 +32,19 @@ def test_untrained_model_is_copy_scaled(
         copy = baseline(quats, root, src, tgt)
     torch.testing.assert_close(ours.root_pos, copy.root_pos, atol=1e-5, rtol=0)
     angle = qt.angle_between(ours.local_quats, copy.local_quats)
-    assert float(angle.max()) < 1e-3
+    legs = [j for leg in LEGS for j in leg]
+    others = [j for j in range(angle.shape[-1]) if j not in legs]
+    assert float(angle[..., others].max()) < 1e-3
+    if not foot_lock:
+        assert float(angle.max()) < 1e-3
+
+
+def test_checkpoints_from_before_the_foot_lock_load_without_it() -> None:
+    config = ResidualRetargeter(hidden_size=16, num_layers=2).config()
+    del config["foot_lock"]
+    upgraded = ResidualRetargeter.upgrade_config(config)
+    assert upgraded["foot_lock"] is False
+    assert ResidualRetargeter(**upgraded).lock is None
 
 
 def _denoiser_with_weights(weights: list[float]) -> CausalRotationDenoiser:
