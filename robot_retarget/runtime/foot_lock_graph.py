@@ -87,17 +87,22 @@ def _law_of_cosines(l1: ca.SX, l2: ca.SX, d: ca.SX) -> ca.SX:
     return ca.acos(ca.fmin(ca.fmax(cos, -1.0 + margin), 1.0 - margin))
 
 
+def _unit(v: sq.Vec) -> sq.Vec:
+    """``v / |v|``; a zero vector stays zero (as torch's ``normalize``), never NaN."""
+    inv = 1.0 / ca.fmax(sq.norm(v), 1e-30)
+    return (v[0] * inv, v[1] * inv, v[2] * inv)
+
+
 def _from_axis_angle(axis: sq.Vec, angle: ca.SX) -> sq.Quat:
-    u, n = sq.unit(axis)
+    u = _unit(axis)
     s = ca.sin(0.5 * angle)
-    safe = ca.if_else(n > 1e-15, 1.0, 0.0)  # a zero axis stays zero, as torch's normalize
-    return (ca.cos(0.5 * angle), safe * s * u[0], safe * s * u[1], safe * s * u[2])
+    return (ca.cos(0.5 * angle), s * u[0], s * u[1], s * u[2])
 
 
 def _from_two_vectors(a: sq.Vec, b: sq.Vec) -> sq.Quat:
     """As ``quaternion_torch.from_two_vectors`` (same degenerate cases)."""
-    ua, _ = sq.unit(a)
-    ub, _ = sq.unit(b)
+    ua = _unit(a)
+    ub = _unit(b)
     d = sq.dot(ua, ub)
     c = sq.cross(ua, ub)
     s2 = sq.dot(c, c)
@@ -105,7 +110,7 @@ def _from_two_vectors(a: sq.Vec, b: sq.Vec) -> sq.Quat:
     s = ca.sqrt(ca.if_else(degenerate, 1.0, s2))
     half = 0.5 * ca.atan2(ca.if_else(degenerate, 0.0, s), d)
     helper = ca.if_else(ca.fabs(ua[0]) < 0.9, 1.0, 0.0)
-    perp, _ = sq.unit(sq.cross(ua, (helper, 1.0 - helper, ca.SX(0.0))))
+    perp = _unit(sq.cross(ua, (helper, 1.0 - helper, ca.SX(0.0))))
     axis = tuple(ca.if_else(degenerate, perp[i], c[i] / s) for i in range(3))
     sh = ca.sin(half)
     return (ca.cos(half), sh * axis[0], sh * axis[1], sh * axis[2])
@@ -121,7 +126,7 @@ def _two_bone_ik(
     d0 = ca.fmin(ca.fmax(sq.norm(sq.sub(ankle, hip)), lo), hi)
     d1 = ca.fmin(ca.fmax(sq.norm(sq.sub(target, hip)), lo), hi)
     bend = _law_of_cosines(l1, l2, d0) - _law_of_cosines(l1, l2, d1)
-    axis = _add(sq.cross(thigh, shin), _scale(1e-3 * l1 * l2, hinge))
+    axis = _add(sq.cross(thigh, shin), _scale(spec.HINGE_WEIGHT * l1 * l2, hinge))
     r_knee = _from_axis_angle(axis, bend)
     reached = _add(knee, _qrot(r_knee, shin))
     return _from_two_vectors(sq.sub(reached, hip), sq.sub(target, hip)), r_knee

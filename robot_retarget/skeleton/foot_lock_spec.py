@@ -20,3 +20,7 @@ HEIGHT_RAMP = 0.2
 STRETCH = 1e-4
 COS_MARGIN = 1e-4
 KNEE_AXIS = (1.0, 0.0, 0.0)  # canonical rest frames: X points left, the knee's hinge
+# The knee axis joins the thigh × shin normal with this weight (× both lengths): it decides the
+# bend of a straight leg, and tilts a bent knee's axis out of the leg's plane by at most
+# 1e-5 / sin(bend) rad (0.02° at a 2° bend).
+HINGE_WEIGHT = 1e-5

@@ -8,11 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robot_retarget.evaluation.folds import DEFAULT_FOLDS
 from robot_retarget.evaluation.runner import EvalSettings, evaluate
 from robot_retarget.motion.human_motion import load_motion
 from robot_retarget.nn import inference
-from robot_retarget.nn.dataset import DEFAULT_VALIDATION_SUBJECTS, Clip, robot_skeletons
+from robot_retarget.nn.dataset import Clip, robot_skeletons
 from robot_retarget.nn.inference import load_model
+from robot_retarget.nn.models.residual import ResidualRetargeter
 
 MAX_BYTES = 20 * 1024 * 1024
 # A 5° sideways knee bend may move another joint's correction by at most this much.
@@ -26,16 +28,20 @@ def test_default_checkpoint_ships_small_with_its_provenance() -> None:
     assert loaded.architecture == "residual"
     meta = loaded.metadata
     assert "launch.py train --model residual" in meta["command"]
-    assert set(meta["validation_subjects"]) == set(DEFAULT_VALIDATION_SUBJECTS)
-    assert not set(meta["train_subjects"]) & set(DEFAULT_VALIDATION_SUBJECTS)
+    # The cross-validation protocol's test-fold model: the test fold never seen, nothing picked.
+    held_out = set(DEFAULT_FOLDS.test)
+    assert set(meta["train_config"]["exclude_subjects"]) == held_out
+    assert not set(meta["train_subjects"]) & held_out
+    assert meta["validation_subjects"] == []
+    assert meta["step"] == meta["train_config"]["steps"]
     assert "robot:op3" in loaded.skeletons
+    assert loaded.model.config()["foot_lock"] is True
 
 
-# Two clips of each validation subject (never trained on), first 10 s at 30 fps.
+# Clips of the held-out test fold's performers (never trained on), first 10 s at 30 fps.
 UNSEEN_CLIPS = (
-    ("06", "06_01.bvh"), ("06", "06_10.bvh"),
-    ("08", "08_01.bvh"), ("08", "08_05.bvh"),
-    ("12", "12_01.bvh"), ("12", "12_03.bvh"),
+    ("07", "07_01.bvh"), ("07", "07_06.bvh"), ("07", "07_12.bvh"),
+    ("13", "13_10.bvh"), ("13", "13_32.bvh"), ("13", "13_41.bvh"),
 )  # fmt: skip
 
 
@@ -66,7 +72,8 @@ def test_default_beats_copy_on_unseen_subjects_retargeted_to_op3(shared_data_dir
 def test_default_is_not_hypersensitive_to_an_unusual_joint(shared_data_dir: Path) -> None:
     """Bending one knee 5° sideways (a pose the data never shows) must not swing the other
     joints' corrections around: before spread floors and the Δq cap, it moved the forearm's
-    correction by 21°."""
+    correction by 21°. The correction network is what is tested: the foot lock, whose leg IK
+    answers a moved ankle by design, is switched off."""
     import torch
 
     from robot_retarget.geometry import quaternion as quat
@@ -75,6 +82,8 @@ def test_default_is_not_hypersensitive_to_an_unusual_joint(shared_data_dir: Path
     from robot_retarget.skeleton.canonical import Joint
 
     model = load_model(inference.DEFAULT_MODEL).model
+    assert isinstance(model, ResidualRetargeter)
+    model.lock = None
     motion = load_motion(shared_data_dir / "mocap" / "06" / "06_01.bvh", max_frames=400)
     motion = motion.resample(30.0)
     q = motion.local_quats.copy()

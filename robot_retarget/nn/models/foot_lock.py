@@ -39,6 +39,7 @@ from robot_retarget.skeleton.foot_lock_spec import (
     CONTACT_FPS,
     COS_MARGIN,
     HEIGHT_RAMP,
+    HINGE_WEIGHT,
     KNEE_AXIS,
     LEGS,
     SPEED_RAMP,
@@ -104,8 +105,9 @@ def two_bone_ik(
     about the hip by R_hip, puts the ankle at ``target`` (or as near as the leg reaches).
     Points (…, 3); ``hinge`` (…, 3) the knee axis, used where the leg is straight. A target at
     the ankle gives identities, exactly. The knee angles come from the law of cosines with the
-    hip–ankle distance kept a hair short of a straight leg (gradients stay finite), so a knee
-    within about a degree of straight bends from there and lands up to that short."""
+    hip–ankle distance kept 1e-4 of the leg's length short of a straight leg (gradients stay
+    finite), so a knee within about two degrees of straight is treated as bent that much and
+    can land a few millimetres per metre of leg short of the target."""
     thigh, shin = knee - hip, ankle - knee
     l1 = torch.linalg.vector_norm(thigh, dim=-1)
     l2 = torch.linalg.vector_norm(shin, dim=-1)
@@ -114,7 +116,7 @@ def two_bone_ik(
     d1 = torch.linalg.vector_norm(target - hip, dim=-1).clamp(lo, hi)
     # Interior knee angle θ: opening the knee by θ1 − θ0 turns the shin away from the thigh.
     bend = _law_of_cosines(l1, l2, d0) - _law_of_cosines(l1, l2, d1)
-    axis = torch.linalg.cross(thigh, shin, dim=-1) + 1e-3 * (l1 * l2)[..., None] * hinge
+    axis = torch.linalg.cross(thigh, shin, dim=-1) + HINGE_WEIGHT * (l1 * l2)[..., None] * hinge
     r_knee = qt.from_axis_angle(axis, bend)
     reached = knee + qt.rotate(r_knee, shin)
     return qt.from_two_vectors(reached - hip, target - hip), r_knee

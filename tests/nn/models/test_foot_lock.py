@@ -36,11 +36,18 @@ def test_two_bone_ik_reaches_any_reachable_target(
     ankle = knee + torch.tensor(shin, dtype=torch.float64)
     l1, l2 = float(torch.linalg.norm(knee - hip)), float(torch.linalg.norm(ankle - knee))
     lo, hi = abs(l1 - l2), l1 + l2
-    # A knee within a degree of straight starts from the clamp's bend (see two_bone_ik).
-    assume(float(torch.linalg.norm(ankle - hip)) < hi * np.cos(np.radians(0.5)))
+    # A knee within a few degrees of straight or of folded starts from the clamp's bend (see
+    # two_bone_ik): the hip-ankle distance stays 1e-3 of the leg's length inside its range.
+    d0 = float(torch.linalg.norm(ankle - hip))
+    assume(lo + 1e-3 * hi < d0 < hi * (1.0 - 1e-3))
     direction = torch.tensor(aim, dtype=torch.float64)
     target = hip + direction / torch.linalg.norm(direction) * (lo + reach * (hi - lo))
-    r_hip, r_knee = two_bone_ik(hip, knee, ankle, target, torch.tensor([1.0, 0.0, 0.0]).double())
+    # A knee's hinge is square to the thigh, as a real knee's (it decides a straight or a
+    # folded leg's bend; along the bone it could not turn the shin at all).
+    along_z = abs(thigh[2]) / float(np.linalg.norm(thigh)) > 0.9
+    helper = torch.tensor([1.0, 0.0, 0.0] if along_z else [0.0, 0.0, 1.0])
+    hinge = torch.linalg.cross(knee - hip, helper.double(), dim=-1)
+    r_hip, r_knee = two_bone_ik(hip, knee, ankle, target, hinge / torch.linalg.norm(hinge))
     new_knee = hip + qt.rotate(r_hip, knee - hip)
     new_ankle = new_knee + qt.rotate(r_hip, qt.rotate(r_knee, ankle - knee))
     assert float(torch.linalg.norm(new_ankle - target)) < 1e-3 * hi
