@@ -19,6 +19,7 @@ from robot_retarget.nn.models.residual import ResidualRetargeter
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.runtime.loader import online_retargeter
+from robot_retarget.runtime.model import OnlineStep
 from robot_retarget.runtime.residual import FastResidualRetargeter
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.skeleton.foot_lock_spec import LEGS
@@ -67,10 +68,17 @@ def test_the_demo_exercises_the_foot_lock(demo: HumanMotion, op3: RobotConfig) -
         assert isinstance(model.model, ResidualRetargeter)
         if not lock:
             model.model.lock = None
-        fast = online_retargeter(model, demo.skeleton.offsets, tgt)
-        frames = zip(demo.local_quats, demo.root_pos, strict=True)
-        outputs.append(np.array([fast.step(q, r)[0] for q, r in frames]))
-    angle = quat.angle_between(outputs[0], outputs[1])
+        outputs.append(_rotations(online_retargeter(model, demo.skeleton.offsets, tgt), demo))
+    _assert_only_the_legs_differ(*outputs)
+
+
+def _rotations(step: OnlineStep, motion: HumanMotion) -> np.ndarray:
+    frames = zip(motion.local_quats, motion.root_pos, strict=True)
+    return np.array([step.step(q, r)[0] for q, r in frames])
+
+
+def _assert_only_the_legs_differ(a: np.ndarray, b: np.ndarray) -> None:
+    angle = quat.angle_between(a, b)
     legs = [j for leg in LEGS for j in leg]
     assert angle[:, legs].max() > 1e-3
     assert np.delete(angle, legs, axis=1).max() < 1e-9
@@ -83,15 +91,15 @@ def test_the_foot_lock_judges_speed_at_the_rate_it_runs(
     as planted, so the legs differ (and only they); a rate that is not positive is refused."""
     tgt = robot_canonical_skeleton(op3).offsets
     weights = _trained_like().model.export_weights()
-    out = []
-    for rate in (30.0, 120.0):
-        fast = FastResidualRetargeter(weights, demo.skeleton.offsets, tgt, frame_rate_hz=rate)
-        frames = zip(demo.local_quats, demo.root_pos, strict=True)
-        out.append(np.array([fast.step(q, r)[0] for q, r in frames]))
-    angle = quat.angle_between(out[0], out[1])
-    legs = [j for leg in LEGS for j in leg]
-    assert angle[:, legs].max() > 1e-3
-    assert np.delete(angle, legs, axis=1).max() < 1e-9
+    _assert_only_the_legs_differ(
+        *(
+            _rotations(
+                FastResidualRetargeter(weights, demo.skeleton.offsets, tgt, frame_rate_hz=rate),
+                demo,
+            )
+            for rate in (30.0, 120.0)
+        )
+    )
     with pytest.raises(ValueError, match="frame_rate_hz"):
         FastResidualRetargeter(weights, demo.skeleton.offsets, tgt, frame_rate_hz=0.0)
 
