@@ -107,7 +107,10 @@ def test_killed_workers_and_a_bad_clip_lose_nothing_and_a_rerun_completes(
 
     assert len(reports) == len(jobs)  # every clip reported: nothing was fatal
     errors = {r.clip.name: r.error for r in reports}
-    assert "OFFSET" in str(errors["broken.bvh"])
+    # The broken clip is reported failed: by its parse error, or, when Ray hands it to a worker
+    # that is still dying (a race on two loaded cores: seen once in CI), by that death.
+    broken = str(errors["broken.bvh"])
+    assert "OFFSET" in broken or "worker died" in broken, broken
     assert any("worker died" in str(e) for e in errors.values())
     saved = Manifest.open(out, settings)
     for job in jobs:
