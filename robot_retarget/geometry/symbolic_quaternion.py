@@ -57,6 +57,24 @@ def angle(q: Quat) -> ca.SX:
 IDENTITY: Mat = tuple(ca.SX(1.0 if i == j else 0.0) for i in range(3) for j in range(3))
 
 
+def quat_at(v: ca.SX, i: int) -> Quat:
+    """The ``i``-th quaternion of a flat SX vector of quaternions ((J, 4) row-major)."""
+    return (v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3])
+
+
+def vec_at(v: ca.SX, i: int) -> Vec:
+    """The ``i``-th 3-vector of a flat SX vector of 3-vectors ((J, 3) row-major)."""
+    return (v[3 * i], v[3 * i + 1], v[3 * i + 2])
+
+
+def add(a: Vec, b: Vec) -> Vec:
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def scale(s: ca.SX, v: Vec) -> Vec:
+    return (s * v[0], s * v[1], s * v[2])
+
+
 def dot(a: Vec, b: Vec) -> ca.SX:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
@@ -77,6 +95,12 @@ def unit(v: Vec) -> tuple[Vec, ca.SX]:
     """``v / |v|`` and ``|v|`` (the caller guards a zero norm)."""
     n = norm(v)
     return (v[0] / n, v[1] / n, v[2] / n), n
+
+
+def unit_or_zero(v: Vec) -> Vec:
+    """``v / |v|``; a zero vector stays zero (as ``quaternion_torch.normalize``), never NaN."""
+    inv = 1.0 / ca.fmax(norm(v), 1e-30)
+    return (v[0] * inv, v[1] * inv, v[2] * inv)
 
 
 def reject(v: Vec, u: Vec) -> Vec:
@@ -136,6 +160,11 @@ def rotate(m: Mat, v: Vec) -> Vec:
         m[3] * v[0] + m[4] * v[1] + m[5] * v[2],
         m[6] * v[0] + m[7] * v[1] + m[8] * v[2],
     )
+
+
+def qrotate(q: Quat, v: Vec) -> Vec:
+    """``v`` turned by the unit quaternion ``q``."""
+    return rotate(matrix(q), v)
 
 
 def with_heading(q: Quat, yaw: ca.SX) -> Quat:

@@ -71,7 +71,7 @@ def targets_function(
     q = ca.SX.sym("q", 4 * j)
     glob: list[sq.Quat] = []
     for n, p in enumerate(parents):
-        qn: sq.Quat = (q[4 * n], q[4 * n + 1], q[4 * n + 2], q[4 * n + 3])
+        qn = sq.quat_at(q, n)
         glob.append(qn if p < 0 else sq.qmul(glob[p], qn))
     rotated: list[sq.Vec] = []
     for row, idx in enumerate(rot_index):

@@ -37,26 +37,6 @@ STATE_SIZE = 14
 LEG_JOINTS = tuple(j for leg in spec.LEGS for j in leg)
 
 
-def _quat(v: ca.SX, i: int) -> sq.Quat:
-    return (v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3])
-
-
-def _vec(v: ca.SX, i: int) -> sq.Vec:
-    return (v[3 * i], v[3 * i + 1], v[3 * i + 2])
-
-
-def _add(a: sq.Vec, b: sq.Vec) -> sq.Vec:
-    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
-
-
-def _scale(s: ca.SX, v: sq.Vec) -> sq.Vec:
-    return (s * v[0], s * v[1], s * v[2])
-
-
-def _qrot(q: sq.Quat, v: sq.Vec) -> sq.Vec:
-    return sq.rotate(sq.matrix(q), v)
-
-
 def _ramp(x: ca.SX, threshold: float, share: float) -> ca.SX:
     lo, hi = threshold * (1.0 - share), threshold * (1.0 + share)
     return ca.fmin(ca.fmax((hi - x) / (hi - lo), 0.0), 1.0)
@@ -67,15 +47,15 @@ def _leg_chain(
 ) -> tuple[list[sq.Vec], list[sq.Quat], sq.Quat]:
     """World positions and global rotations of a leg's hip, knee and ankle, and the hip's
     parent's global rotation (the root's)."""
-    g_root = _quat(q, 0)
+    g_root = sq.quat_at(q, 0)
     parent = CANONICAL_PARENTS[leg[0]]
     assert parent == 0, "the legs hang from the root"
     pos: list[sq.Vec] = []
     glob: list[sq.Quat] = []
     p, g = root, g_root
     for joint in leg:
-        p = _add(p, _qrot(g, _vec(offsets, joint)))
-        g = sq.qmul(g, _quat(q, joint))
+        p = sq.add(p, sq.qrotate(g, sq.vec_at(offsets, joint)))
+        g = sq.qmul(g, sq.quat_at(q, joint))
         pos.append(p)
         glob.append(g)
     return pos, glob, g_root
@@ -87,22 +67,16 @@ def _law_of_cosines(l1: ca.SX, l2: ca.SX, d: ca.SX) -> ca.SX:
     return ca.acos(ca.fmin(ca.fmax(cos, -1.0 + margin), 1.0 - margin))
 
 
-def _unit(v: sq.Vec) -> sq.Vec:
-    """``v / |v|``; a zero vector stays zero (as torch's ``normalize``), never NaN."""
-    inv = 1.0 / ca.fmax(sq.norm(v), 1e-30)
-    return (v[0] * inv, v[1] * inv, v[2] * inv)
-
-
 def _from_axis_angle(axis: sq.Vec, angle: ca.SX) -> sq.Quat:
-    u = _unit(axis)
+    u = sq.unit_or_zero(axis)
     s = ca.sin(0.5 * angle)
     return (ca.cos(0.5 * angle), s * u[0], s * u[1], s * u[2])
 
 
 def _from_two_vectors(a: sq.Vec, b: sq.Vec) -> sq.Quat:
     """As ``quaternion_torch.from_two_vectors`` (same degenerate cases)."""
-    ua = _unit(a)
-    ub = _unit(b)
+    ua = sq.unit_or_zero(a)
+    ub = sq.unit_or_zero(b)
     d = sq.dot(ua, ub)
     c = sq.cross(ua, ub)
     s2 = sq.dot(c, c)
@@ -110,7 +84,7 @@ def _from_two_vectors(a: sq.Vec, b: sq.Vec) -> sq.Quat:
     s = ca.sqrt(ca.if_else(degenerate, 1.0, s2))
     half = 0.5 * ca.atan2(ca.if_else(degenerate, 0.0, s), d)
     helper = ca.if_else(ca.fabs(ua[0]) < 0.9, 1.0, 0.0)
-    perp = _unit(sq.cross(ua, (helper, 1.0 - helper, ca.SX(0.0))))
+    perp = sq.unit_or_zero(sq.cross(ua, (helper, 1.0 - helper, ca.SX(0.0))))
     axis = tuple(ca.if_else(degenerate, perp[i], c[i] / s) for i in range(3))
     sh = ca.sin(half)
     return (ca.cos(half), sh * axis[0], sh * axis[1], sh * axis[2])
@@ -126,9 +100,9 @@ def _two_bone_ik(
     d0 = ca.fmin(ca.fmax(sq.norm(sq.sub(ankle, hip)), lo), hi)
     d1 = ca.fmin(ca.fmax(sq.norm(sq.sub(target, hip)), lo), hi)
     bend = _law_of_cosines(l1, l2, d0) - _law_of_cosines(l1, l2, d1)
-    axis = _add(sq.cross(thigh, shin), _scale(spec.HINGE_WEIGHT * l1 * l2, hinge))
+    axis = sq.add(sq.cross(thigh, shin), sq.scale(spec.HINGE_WEIGHT * l1 * l2, hinge))
     r_knee = _from_axis_angle(axis, bend)
-    reached = _add(knee, _qrot(r_knee, shin))
+    reached = sq.add(knee, sq.qrotate(r_knee, shin))
     return _from_two_vectors(sq.sub(reached, hip), sq.sub(target, hip)), r_knee
 
 
@@ -146,8 +120,8 @@ def foot_lock_graph() -> tuple[list[ca.SX], list[ca.SX]]:
     first = ca.SX.sym("first")
     legs: list[ca.SX] = []
     state_next: list[ca.SX] = []
-    src_root = _vec(root_src, 0)
-    out_root = _vec(root_out, 0)
+    src_root = sq.vec_at(root_src, 0)
+    out_root = sq.vec_at(root_out, 0)
     for side, leg in enumerate(spec.LEGS):
         base = 7 * side
         anchor_prev = tuple(state[base + i] for i in range(3))
@@ -169,7 +143,7 @@ def foot_lock_graph() -> tuple[list[ca.SX], list[ca.SX]]:
             ca.if_else(first, ankle[i], w * anchor_prev[i] + (1.0 - w) * ankle[i]) for i in range(3)
         )
         target = (anchor[0], ankle[1], anchor[2])
-        hinge = _qrot(glob[1], tuple(ca.SX(c) for c in spec.KNEE_AXIS))
+        hinge = sq.qrotate(glob[1], tuple(ca.SX(c) for c in spec.KNEE_AXIS))
         r_hip, r_knee = _two_bone_ik(pos[0], pos[1], ankle, target, hinge)
         new_thigh = sq.qmul(r_hip, glob[0])
         new_shin = sq.qmul(r_hip, sq.qmul(r_knee, glob[1]))

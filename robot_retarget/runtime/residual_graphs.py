@@ -29,14 +29,6 @@ from robot_retarget.geometry import symbolic_quaternion as sq
 REL_SCALE = 10.0  # as robot_retarget.nn.models.residual
 
 
-def _quat(v: ca.SX, i: int) -> sq.Quat:
-    return (v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3])
-
-
-def _vec(v: ca.SX, i: int) -> sq.Vec:
-    return (v[3 * i], v[3 * i + 1], v[3 * i + 2])
-
-
 def features_graph(num_joints: int, history: int) -> tuple[list[ca.SX], list[ca.SX]]:
     j, k = num_joints, history
     q = ca.SX.sym("q", 4 * j)
@@ -45,9 +37,9 @@ def features_graph(num_joints: int, history: int) -> tuple[list[ca.SX], list[ca.
     rel: list[ca.SX] = []
     past_next: list[ca.SX] = []
     for n in range(j):
-        qn = _quat(q, n)
+        qn = sq.quat_at(q, n)
         inv = sq.conj(qn)
-        vecs = [sq.rotvec(sq.qmul(inv, _quat(past, n * k + m))) for m in range(k)]
+        vecs = [sq.rotvec(sq.qmul(inv, sq.quat_at(past, n * k + m))) for m in range(k)]
         for v in vecs:
             feats.extend(REL_SCALE * c for c in v)
             rel.extend(v)
@@ -56,7 +48,7 @@ def features_graph(num_joints: int, history: int) -> tuple[list[ca.SX], list[ca.
         feats.extend(ca.SX(1.0 if m == n else 0.0) for m in range(j))
         past_next.extend(qn)
         for m in range(k - 1):
-            past_next.extend(_quat(past, n * k + m))
+            past_next.extend(sq.quat_at(past, n * k + m))
     return [q, past], [ca.vertcat(*feats), ca.vertcat(*rel), ca.vertcat(*past_next)]
 
 
@@ -66,13 +58,13 @@ def pose_graph(parents: tuple[int, ...], history: int) -> tuple[list[ca.SX], lis
     rel = ca.SX.sym("rel", 3 * j * k)
     weights = ca.SX.sym("weights", j * k)
     offsets = ca.SX.sym("offsets", 3 * j)
-    q_den: list[sq.Quat] = [_quat(q, 0)]
+    q_den: list[sq.Quat] = [sq.quat_at(q, 0)]
     for n in range(1, j):
         corr = [
             sum((weights[n * k + m] * rel[3 * (n * k + m) + c] for m in range(k)), ca.SX(0.0))
             for c in range(3)
         ]
-        q_den.append(sq.qmul(_quat(q, n), sq.from_rotvec(corr)))
+        q_den.append(sq.qmul(sq.quat_at(q, n), sq.from_rotvec(corr)))
     local = [sq.matrix(qn) for qn in q_den]
     glob: list[sq.Mat] = []
     pos: list[sq.Vec] = []
@@ -82,7 +74,7 @@ def pose_graph(parents: tuple[int, ...], history: int) -> tuple[list[ca.SX], lis
             pos.append((ca.SX(0.0), ca.SX(0.0), ca.SX(0.0)))
             continue
         glob.append(sq.matmul(glob[p], local[n]))
-        bone = sq.rotate(glob[p], _vec(offsets, n))
+        bone = sq.rotate(glob[p], sq.vec_at(offsets, n))
         pos.append((pos[p][0] + bone[0], pos[p][1] + bone[1], pos[p][2] + bone[2]))
     x = [c for v in pos for c in v]
     for m in local:  # column 0, then column 1 of each joint's local matrix
@@ -99,11 +91,11 @@ def output_graph(num_joints: int) -> tuple[list[ca.SX], list[ca.SX]]:
     cap = ca.SX.sym("cap")
     out: list[ca.SX] = []
     for n in range(num_joints):
-        ux, uy, uz = _vec(u, n)
+        ux, uy, uz = sq.vec_at(u, n)
         delta = sq.from_rotvec(
             (cap * ca.tanh(ux / cap), cap * ca.tanh(uy / cap), cap * ca.tanh(uz / cap))
         )
-        qb = sq.normalize(sq.qmul(_quat(q_den, n), delta))
+        qb = sq.normalize(sq.qmul(sq.quat_at(q_den, n), delta))
         out.extend(sq.with_heading(qb, yaw) if n == 0 else qb)
     return [q_den, u, yaw, cap], [ca.vertcat(*out)]
 
