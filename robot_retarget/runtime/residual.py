@@ -18,6 +18,7 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import CompiledFunction
+from robot_retarget.evaluation.skeleton_measures import leg_length
 from robot_retarget.runtime.copy import rest_height_m
 from robot_retarget.runtime.foot_lock_graph import LEG_JOINTS, STATE_SIZE, foot_lock_function
 from robot_retarget.runtime.frame import (
@@ -29,8 +30,9 @@ from robot_retarget.runtime.frame import (
 )
 from robot_retarget.runtime.residual_graphs import residual_stages
 from robot_retarget.runtime.residual_weights import ResidualWeights
-from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 from robot_retarget.skeleton.foot_lock_spec import CONTACT_FPS
+from robot_retarget.skeleton.skeleton import Skeleton
 
 _J = NUM_JOINTS
 
@@ -150,8 +152,7 @@ class _FootLockStep:
     ) -> None:
         if not rate_hz > 0.0:
             raise ValueError(f"frame_rate_hz must be positive, got {rate_hz}")
-        n = np.linalg.norm(src, axis=-1)
-        leg = 0.5 * (n[Joint.LeftLeg] + n[Joint.LeftFoot] + n[Joint.RightLeg] + n[Joint.RightFoot])
+        leg = leg_length(Skeleton(CANONICAL_JOINTS, CANONICAL_PARENTS, src))
         self._q_src = np.zeros(4 * _J)
         self._root_src = np.zeros(3)
         self._root_out = np.zeros(3)

@@ -31,7 +31,7 @@ import torch
 
 from robot_retarget.evaluation.foot_contact import CONTACT_HEIGHT_LEGS, CONTACT_SPEED_LEGS_S
 from robot_retarget.nn import quaternion_torch as qt
-from robot_retarget.nn.features import yaw_rotate
+from robot_retarget.nn.features import integrate_root, yaw_rotate
 from robot_retarget.nn.fk_torch import forward_kinematics
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
 from robot_retarget.skeleton.foot_lock_spec import (
@@ -86,11 +86,32 @@ def held_anchors(points: Tensor, weights: Tensor) -> Tensor:
     return (mix @ points.transpose(1, 2)).transpose(1, 2)
 
 
-def world_frame(root_vel: Tensor) -> tuple[Tensor, Tensor]:
-    """Heading (…, T) and root position (…, T, 3) integrated from root velocities (…, T, 4)
-    (heading-frame displacements and turns per frame), from zero at the first frame."""
-    yaw = torch.cumsum(root_vel[..., 3], dim=-1)
-    return yaw, torch.cumsum(yaw_rotate(root_vel[..., :3], yaw), dim=-2)
+def _path(root_vel: Tensor) -> tuple[Tensor, Tensor]:
+    """Root positions (B, T, 3) and headings (B, T) of velocities (B, T, 4), from the origin
+    and heading 0 (the lock's quantities do not depend on where the path starts)."""
+    start = root_vel.new_zeros(root_vel.shape[0], 3)
+    return integrate_root(root_vel, start, start[:, 0])
+
+
+def _world_ankles(pos: Tensor, root: Tensor, yaw: Tensor) -> Tensor:
+    """The ankles (…, 2, 3) of root-relative joints ``pos`` (…, J, 3) in the heading frame,
+    placed at ``root`` (…, 3) turned by ``yaw`` (…)."""
+    return root[..., None, :] + _turn(pos[..., ANKLES, :], yaw)
+
+
+def _lock_to(
+    local_quats: Tensor,
+    glob: Tensor,
+    pos: Tensor,
+    anchors: Tensor,
+    ankles: Tensor,
+    root: Tensor,
+    yaw: Tensor,
+) -> Tensor:
+    """``local_quats`` with the ankles (world, …, 2, 3) moved to the anchors' horizontal place
+    at their own height, through :func:`relock` in the root's heading frame."""
+    target = torch.cat([anchors[..., :1], ankles[..., 1:2], anchors[..., 2:]], dim=-1)
+    return relock(local_quats, glob, pos, _turn(target - root[..., None, :], -yaw))
 
 
 def _law_of_cosines(l1: Tensor, l2: Tensor, d: Tensor) -> Tensor:
@@ -146,6 +167,13 @@ def relock(local_quats: Tensor, glob: Tensor, pos: Tensor, targets: Tensor) -> T
     return torch.stack(out, dim=-2)
 
 
+def _advance(root: Tensor, yaw: Tensor, root_vel: Tensor) -> tuple[Tensor, Tensor]:
+    """One frame of :func:`integrate_root`: position (B, 3) and heading (B,) after moving by
+    ``root_vel`` (B, 4)."""
+    yaw = yaw + root_vel[:, 3]
+    return root + yaw_rotate(root_vel[:, :3], yaw), yaw
+
+
 @dataclass(frozen=True)
 class LockState:
     """What a frame-by-frame lock carries to the next frame (batch B)."""
@@ -178,17 +206,15 @@ class FootLock(torch.nn.Module):
         """Locked rotations (B, T, J, 4) of a clip: heading-free output rotations, the output's
         root velocities (B, T, 4), the target's offsets (B, J, 3); the source's root-relative
         joints (B, T, J, 3), root velocities (B, T, 4) and leg length (B,)."""
-        src_yaw, src_root = world_frame(src_root_vel)
-        src_ankles = src_root[:, :, None] + _turn(src_pos[:, :, ANKLES], src_yaw)
+        src_root, src_yaw = _path(src_root_vel)
+        src_ankles = _world_ankles(src_pos, src_root, src_yaw)
         prev = torch.cat([src_ankles[:, :1], src_ankles[:, :-1]], dim=1)
         lowest = torch.cummin(src_ankles[..., 1], dim=1).values
         w = contact_weights(src_ankles, prev, lowest, src_leg[:, None])  # (B, T, 2)
         pos, glob = forward_kinematics(CANONICAL_PARENTS, offsets, local_quats)
-        yaw, root = world_frame(root_vel)
-        ankles = root[:, :, None] + _turn(pos[:, :, ANKLES], yaw)
-        target = held_anchors(ankles, w)
-        target = torch.cat([target[..., :1], ankles[..., 1:2], target[..., 2:]], dim=-1)
-        return relock(local_quats, glob, pos, _turn(target - root[:, :, None], -yaw))
+        root, yaw = _path(root_vel)
+        ankles = _world_ankles(pos, root, yaw)
+        return _lock_to(local_quats, glob, pos, held_anchors(ankles, w), ankles, root, yaw)
 
     def reset(self) -> None:
         self._state = None
@@ -205,25 +231,20 @@ class FootLock(torch.nn.Module):
         """One frame: (B, J, 4), (B, 4), (B, J, 3), (B, J, 3), (B, 4), (B,); equal to
         :meth:`forward`'s frame on the whole clip."""
         s = self._state
-        zero = torch.zeros_like(root_vel[:, 0])
-        yaw0, root0, src_yaw0, src_root0 = (
-            (zero, torch.zeros_like(root_vel[:, :3]), zero, torch.zeros_like(root_vel[:, :3]))
-            if s is None
-            else (s.yaw, s.root, s.src_yaw, s.src_root)
-        )
-        src_yaw = src_yaw0 + src_root_vel[:, 3]
-        src_root = src_root0 + yaw_rotate(src_root_vel[:, :3], src_yaw)
-        src_ankles = src_root[:, None] + _turn(src_pos[:, ANKLES], src_yaw)
+        if s is None:  # as integrate_root: the first frame sits at the origin, heading 0
+            root = src_root = root_vel.new_zeros(root_vel.shape[0], 3)
+            yaw = src_yaw = root_vel.new_zeros(root_vel.shape[0])
+        else:
+            src_root, src_yaw = _advance(s.src_root, s.src_yaw, src_root_vel)
+            root, yaw = _advance(s.root, s.yaw, root_vel)
+        src_ankles = _world_ankles(src_pos, src_root, src_yaw)
         prev = src_ankles if s is None else s.src_ankles
         lowest = (
             src_ankles[..., 1] if s is None else torch.minimum(s.src_lowest, src_ankles[..., 1])
         )
         w = contact_weights(src_ankles, prev, lowest, src_leg)[..., None]
         pos, glob = forward_kinematics(CANONICAL_PARENTS, offsets, local_quats)
-        yaw = yaw0 + root_vel[:, 3]
-        root = root0 + yaw_rotate(root_vel[:, :3], yaw)
-        ankles = root[:, None] + _turn(pos[:, ANKLES], yaw)
+        ankles = _world_ankles(pos, root, yaw)
         anchor = ankles if s is None else w * s.anchors + (1.0 - w) * ankles
         self._state = LockState(yaw, root, anchor, src_yaw, src_root, src_ankles, lowest)
-        target = torch.cat([anchor[..., :1], ankles[..., 1:2], anchor[..., 2:]], dim=-1)
-        return relock(local_quats, glob, pos, _turn(target - root[:, None], -yaw))
+        return _lock_to(local_quats, glob, pos, anchor, ankles, root, yaw)
