@@ -20,18 +20,29 @@ def smooth_clip(frames: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return quat.from_rotation_vector(rot), root
 
 
+def assert_same_steps(
+    a: RuntimeModel, b: RuntimeModel, *, frames: int, seed: int, scale: float, atol: float
+) -> None:
+    """Both runtimes, stepped over the same smooth clip onto ``scale`` × the reference
+    skeleton, give the same outputs: to ``atol``, or bit for bit when it is 0."""
+    src = default_canonical_skeleton().offsets
+    quats, root = smooth_clip(frames, seed=seed)
+    step_a, step_b = a.online(src, scale * src), b.online(src, scale * src)
+    for t in range(len(quats)):
+        for x, y in zip(
+            step_a.step(quats[t], root[t]), step_b.step(quats[t], root[t]), strict=True
+        ):
+            if atol == 0.0:
+                np.testing.assert_array_equal(x, y)
+            else:
+                np.testing.assert_allclose(x, y, rtol=0, atol=atol)
+
+
 def assert_export_round_trip(runtime: RuntimeModel, path: Path) -> None:
     """Saved and loaded again, the runtime steps as before (to float32 storage)."""
     back = load_runtime(save_runtime(runtime, path))
     assert back.architecture == runtime.architecture
-    src = default_canonical_skeleton().offsets
-    quats, root = smooth_clip(40, seed=2)
-    a, b = runtime.online(src, 0.5 * src), back.online(src, 0.5 * src)
-    for t in range(len(quats)):
-        qa, ra = a.step(quats[t], root[t])
-        qb, rb = b.step(quats[t], root[t])
-        np.testing.assert_allclose(qa, qb, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(ra, rb, rtol=0, atol=1e-6)
+    assert_same_steps(runtime, back, frames=40, seed=2, scale=0.5, atol=1e-6)
 
 
 def assert_finite_unit_outputs(runtime: RuntimeModel, raw: np.ndarray, root: np.ndarray) -> None:

@@ -22,6 +22,7 @@ from tests.pipeline.stream_equality import assert_same_stream
 from tests.runtime.runtime_checks import (
     assert_export_round_trip,
     assert_finite_unit_outputs,
+    assert_same_steps,
     smooth_clip,
 )
 
@@ -49,10 +50,6 @@ def _tdcn(causal: bool = True, seed: int = 0) -> TDCN:
     return model.eval()
 
 
-def _clip(frames: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    return smooth_clip(frames, seed)
-
-
 def _same_rotations(a: np.ndarray, b: np.ndarray) -> None:
     sign = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
     np.testing.assert_allclose(a * sign, b, rtol=0, atol=TOL)
@@ -61,7 +58,7 @@ def _same_rotations(a: np.ndarray, b: np.ndarray) -> None:
 def test_whole_clip_equals_torch_causal_and_centred() -> None:
     src = default_canonical_skeleton().offsets
     tgt = 0.4 * src
-    quats, root = _clip(130)  # longer than the 81-frame receptive field
+    quats, root = smooth_clip(130)  # longer than the 81-frame receptive field
     for causal in (True, False):
         model = _tdcn(causal)
         want_q, want_r = retarget_clip(model, quats, root, src, tgt)
@@ -73,7 +70,7 @@ def test_whole_clip_equals_torch_causal_and_centred() -> None:
 def test_online_step_equals_torch_step_and_clip() -> None:
     src = default_canonical_skeleton().offsets
     tgt = 0.4 * src
-    quats, root = _clip(100, seed=1)
+    quats, root = smooth_clip(100, seed=1)
     model = _tdcn()
     assert_same_stream(
         LoadedModel(name="tdcn", model=model), src, tgt, quats, root, FastTDCNRetargeter, TOL
@@ -124,11 +121,4 @@ def test_the_shipped_tdcn_runtime_is_its_checkpoint() -> None:
     assert shipped.architecture == "tdcn"
     exported = runtime_of(load_model("tdcn"))
     assert exported is not None
-    src = default_canonical_skeleton().offsets
-    quats, root = _clip(30, seed=5)
-    a, b = shipped.online(src, 0.4 * src), exported.online(src, 0.4 * src)
-    for t in range(len(quats)):
-        qa, ra = a.step(quats[t], root[t])
-        qb, rb = b.step(quats[t], root[t])
-        np.testing.assert_array_equal(qa, qb)
-        np.testing.assert_array_equal(ra, rb)
+    assert_same_steps(shipped, exported, frames=30, seed=5, scale=0.4, atol=0.0)
