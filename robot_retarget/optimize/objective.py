@@ -92,6 +92,11 @@ class Objective:
         """(q_{−2}, q_{−1}) of a window: the committed history parameters."""
         return p[self.layout.shared(_Q_PREV2)], p[self.layout.shared(_Q_PREV)]
 
+    def history_slices(self) -> tuple[slice, slice, slice]:
+        """Where ``p`` holds the history: (q_{t−1}, q_{t−2}, 1/dt)."""
+        lay = self.layout
+        return lay.shared(_Q_PREV), lay.shared(_Q_PREV2), lay.shared(_INV_DT)
+
     def writer(self, p: FloatArray, window: int) -> ParameterWriter:
         """Writes a solver's parameter vector ``p`` (laid out for ``window`` frames) in place."""
         return ParameterWriter(self, p, window)

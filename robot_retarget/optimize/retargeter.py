@@ -263,12 +263,44 @@ class Retargeter:
         s = self._online
         self._write_frame(s, self._online_params, 0, targets)  # validates before solving
         if q_prev is not None:
-            self._q_prev = check_array("q_prev", q_prev, (self.num_joints,)).copy()
+            self.set_previous_command(q_prev)
         lo, hi = velocity_box(self._q_prev, self.lower, self.upper, self.max_velocity * dt)
         s.lbx[:] = lo
         s.ubx[:] = hi
         np.minimum(np.maximum(s.x0, lo, out=s.x0), hi, out=s.x0)  # np.clip's wrapper is slower
         self._online_params.write_history(self._q_prev, self._q_prev2, dt)
+        return self._solve_online(lo, hi)
+
+    def solve_written(self) -> SolveResult:
+        """One frame whose parameters, box (``lbx``/``ubx``) and start point a caller has
+        already written into :attr:`online_solver`'s arrays (the live path's compiled frame
+        program, :mod:`.live_frame`); solved, projected and checked as :meth:`solve` does."""
+        s = self._online
+        return self._solve_online(s.lbx, s.ubx)
+
+    def set_previous_command(self, q_prev: npt.ArrayLike) -> None:
+        """Centre the next online solve's velocity box on ``q_prev`` (e.g. a measured pose)."""
+        self._q_prev = check_array("q_prev", q_prev, (self.num_joints,)).copy()
+
+    def history(self) -> tuple[FloatArray, FloatArray]:
+        """(last command, the one before): the online problem's smoothness history. Read
+        only: the arrays are the Retargeter's own."""
+        return self._q_prev, self._q_prev2
+
+    @property
+    def online_solver(self) -> BufferedSolver:
+        """The online solver's bound arrays (p, lbx, ubx, lbg, x0, …)."""
+        return self._online
+
+    def write_online_targets(self, targets: FrameTargets) -> None:
+        """Validate one frame's targets and write them into the online solver's parameters
+        (what :meth:`solve` does first)."""
+        self._write_frame(self._online, self._online_params, 0, targets)
+
+    def _solve_online(self, lo: FloatArray, hi: FloatArray) -> SolveResult:
+        """Solve the written online problem; the result projected onto [lo, hi], checked and
+        committed as the new history."""
+        s = self._online
         t0 = time.perf_counter()
         converged, iters, status_text = s.call()
         elapsed = time.perf_counter() - t0
@@ -337,8 +369,9 @@ class Retargeter:
     @staticmethod
     def _final_check(q: FloatArray, lo: FloatArray, hi: FloatArray) -> None:
         # Invariant of the projection above; checked because a servo is on the other side.
-        # (lo ≤ q ≤ hi is box_violation(q, lo, hi) == 0 without its reductions.)
-        if not (np.isfinite(q).all() and (lo <= q).all() and (q <= hi).all()):
+        # One reduction for lo ≤ q ≤ hi and finiteness: any NaN or infinity in q (or an
+        # infinite bound it meets) makes the largest excess NaN or positive.
+        if not float(np.maximum(lo - q, q - hi).max()) <= 0.0:
             raise SolveError(
                 "internal error: projected command left its box; no command was produced"
             )

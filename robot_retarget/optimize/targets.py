@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
@@ -262,6 +263,16 @@ class FrameTargetBuilder:
         dirs, normals, ee, trunk, self._guard = self._graph.res
         self._outputs = (dirs.reshape(nb, 3), normals.reshape(nb, 3), ee.reshape(-1, 3))
         self._trunk = trunk.reshape(3, 3)
+
+    @property
+    def graph(self) -> ca.Function:
+        """The targets as one SX function (:func:`.targets_graph.targets_function`)."""
+        return self._graph.function
+
+    @property
+    def end_effectors(self) -> bool:
+        """True when the targets carry end-effector positions."""
+        return self._ee
 
     def __call__(self, local_quats: npt.ArrayLike) -> FrameTargets:
         """Targets of one frame of canonical local rotations (22, 4) (unit)."""

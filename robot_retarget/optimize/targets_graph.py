@@ -17,7 +17,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import casadi as ca
-import numpy as np
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import memoized_graph
@@ -121,4 +120,5 @@ def targets_function(
 
 
 def guard_ok(guard: FloatArray) -> bool:
-    return bool(np.min(guard) > GUARD_EPS)
+    # Three numbers: Python floats beat a numpy reduction's call overhead; NaN fails.
+    return all(g > GUARD_EPS for g in guard.tolist())

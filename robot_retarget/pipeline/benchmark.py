@@ -1,10 +1,15 @@
 """``bench pipeline``: compute time per frame of the live path, stage by stage.
 
-Stages, per frame of the built-in demo clip at the robot's control rate: ``decode`` (a binary
-UDP rotations packet → a checked SourceFrame, as the receiver thread does), ``network`` (the
-model's online step), ``targets`` (rotations → optimizer targets), ``optimizer``
-(Retargeter.solve, warm-started), ``safety`` (SafetyLayer clamp) and ``total`` (their sum per
-frame). ``--positions`` decodes position packets instead (adds the minimal-twist solver).
+Stages, per frame of the built-in demo clip at the robot's control rate, as ``stream`` runs them
+(:class:`robot_retarget.pipeline.step.RetargetStep`): ``decode`` (a binary UDP rotations packet →
+a checked SourceFrame, as the receiver thread does), ``network`` (the model's online step),
+``targets`` (rotations → targets, the online problem's parameters and velocity box: one compiled
+call, :mod:`robot_retarget.optimize.live_frame`), ``optimizer`` (the warm-started SQP and its
+checks), ``safety`` (SafetyLayer clamp) and ``total`` (decode to safety, the step's bookkeeping
+included). The ``numpy path`` rows time the same frames, alternating with the first, through a
+step that builds targets and parameters in numpy (``RetargetStep(frame_program=False)``); its
+total adds the frame's decode and safety. ``--positions`` decodes position packets instead
+(adds the minimal-twist solver).
 Pin to one core for the figure that matters: ``taskset -c 1 python launch.py bench pipeline``.
 """
 
@@ -20,6 +25,13 @@ from robot_retarget.bench_stats import stage_records
 HELP = "Per-frame compute time of the live path: decode, network, targets, optimizer, safety."
 
 STAGES: tuple[str, ...] = ("decode", "network", "targets", "optimizer", "safety", "total")
+# The same frames through a second step that builds targets and parameters in numpy
+# (RetargetStep(frame_program=False)), alternating frame by frame with the first.
+NUMPY_STAGES: tuple[str, ...] = (
+    "targets, numpy path",
+    "optimizer, numpy path",
+    "total, numpy path",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -66,14 +78,16 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     model = load_runtime_model(args.model or default_model_name())
     receiver = UdpSource(skeleton=motion.skeleton)  # never started: decode path only
     step = RetargetStep(config, model, motion.skeleton)
-    step.retargeter.warm_up()
-    step.reset(config.init_pose)
+    reference = RetargetStep(config, model, motion.skeleton, frame_program=False)
+    for s in (step, reference):
+        s.retargeter.warm_up()
+        s.reset(config.init_pose)
     safety = SafetyLayer(
         dataclasses.replace(config, control_rate_hz=rate), RecordingBackend(config)
     )
     safety.connect()
     kind = wire.KIND_POSITIONS if args.positions else wire.KIND_ROTATIONS
-    times: dict[str, list[float]] = {s: [] for s in STAGES}
+    times: dict[str, list[float]] = {s: [] for s in STAGES + NUMPY_STAGES}
     n = motion.num_frames
     for k in range(args.warmup + args.frames):
         i = k % n
@@ -85,17 +99,21 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
         t1 = time.perf_counter()
         if frame is None:
             raise RuntimeError(f"benchmark packet {k} was dropped: {receiver.stats.summary()}")
-        quats, _ = step.online.step(frame.local_quats, frame.root_pos)
+        out = step(frame.local_quats, frame.root_pos, dt)
         t2 = time.perf_counter()
-        targets = step.target_builder(quats)
+        safety.send(JointCommand(out.q, k * dt * (1.0 + 1e-9)))
         t3 = time.perf_counter()
-        result = step.retargeter.solve(targets, dt)
+        receiver.poll(t3)  # keep the receiver's queue empty, as the loop does
         t4 = time.perf_counter()
-        safety.send(JointCommand(result.q, k * dt * (1.0 + 1e-9)))
+        ref = reference(frame.local_quats, frame.root_pos, dt)
         t5 = time.perf_counter()
-        receiver.poll(t5)  # keep the receiver's queue empty, as the loop does
         if k >= args.warmup:
-            spans = (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0)
+            network, targets, solve = out.times_s
+            spans = (t1 - t0, network, targets, solve, t3 - t2, t3 - t0)
             for name, d in zip(STAGES, spans, strict=True):
                 times[name].append(d)
-    return stage_records(STAGES, times)
+            # The reference's own step time, with this frame's decode and safety.
+            ref_total = (t1 - t0) + (t5 - t4) + (t3 - t2)
+            for name, d in zip(NUMPY_STAGES, (*ref.times_s[1:], ref_total), strict=True):
+                times[name].append(d)
+    return stage_records(STAGES + NUMPY_STAGES, times)

@@ -6,8 +6,10 @@ with estimator-like noise, a second, smaller person beside the performer. Per ca
 points, the person rule) and ``keypoint model`` (the causal keypoint model's step: features,
 encoders, head → 22 canonical rotations). Per control tick, on the rotations interpolated
 between the last two camera frames (as the control loop does), as ``bench pipeline``:
-``network``, ``targets``, ``optimizer``, ``safety``. ``total``: a tick's stages plus the camera
-frame's when one arrived on that tick; ``total, tick with a camera frame``: those ticks only.
+``network``, ``targets``, ``optimizer`` (the three parts of
+:class:`robot_retarget.pipeline.step.RetargetStep`), ``safety``. ``total``: a tick's stages
+plus the camera frame's when one arrived on that tick; ``total, tick with a camera frame``:
+those ticks only.
 """
 
 from __future__ import annotations
@@ -104,18 +106,14 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
         # The control loop interpolates between the last two input frames.
         local = current if previous is None else quat.slerp(previous, current, camera_t - frame)
         t2 = time.perf_counter()
-        quats, _ = step.online.step(local, root)
+        out = step(local, root, dt)
         t3 = time.perf_counter()
-        targets = step.target_builder(quats)
+        safety.send(JointCommand(out.q, k * dt * (1.0 + 1e-9)))
         t4 = time.perf_counter()
-        result = step.retargeter.solve(targets, dt)
-        t5 = time.perf_counter()
-        safety.send(JointCommand(result.q, k * dt * (1.0 + 1e-9)))
-        t6 = time.perf_counter()
         if k >= args.warmup:
-            for name, d in zip(STAGES_2D[2:6], (t3 - t2, t4 - t3, t5 - t4, t6 - t5), strict=True):
+            for name, d in zip(STAGES_2D[2:6], (*out.times_s, t4 - t3), strict=True):
                 times[name].append(d)
-            times["total"].append(t6 - t2 + arrived)
+            times["total"].append(t4 - t2 + arrived)
             if arrived:
-                times["total, tick with a camera frame"].append(t6 - t2 + arrived)
+                times["total, tick with a camera frame"].append(t4 - t2 + arrived)
     return stage_records(STAGES_2D, times)

@@ -16,6 +16,7 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize import Retargeter, SolveResult
+from robot_retarget.optimize.live_frame import LiveFrameSolver
 from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
@@ -65,6 +66,7 @@ class RetargetStep:
         *,
         retargeter: Retargeter | None = None,
         rate_hz: float | None = None,
+        frame_program: bool = True,
     ) -> None:
         self.config = config
         # The rate frames arrive at (default: the config's control rate): the network's foot
@@ -76,6 +78,9 @@ class RetargetStep:
         self.retargeter = retargeter if retargeter is not None else Retargeter(config)
         # Per-skeleton constants of the targets, computed once (the per-frame path).
         self.target_builder = FrameTargetBuilder(self.retargeter.problem, self.robot_skeleton)
+        # Targets, parameters and velocity box of a frame in one compiled call; False: the
+        # numpy targets and writers (the benchmarks' reference).
+        self.live = LiveFrameSolver(self.retargeter, self.target_builder) if frame_program else None
         self.stats = StepStats()
         self.set_source(source_skeleton)
 
@@ -121,16 +126,22 @@ class RetargetStep:
         (:meth:`Retargeter.settle`), the first frame of a sequence that does not have to start
         where the robot is."""
         t0 = time.perf_counter()
+        if settle and q_prev is not None:
+            raise ValueError("settle starts a sequence: it takes no q_prev")
         quats, root = self.online.step(local_quats, root_pos)
         t1 = time.perf_counter()
-        targets = self.target_builder(quats)
-        t2 = time.perf_counter()
-        if settle:
-            if q_prev is not None:
-                raise ValueError("settle starts a sequence: it takes no q_prev")
-            result = self.retargeter.settle(targets)
-        else:
-            result = self.retargeter.solve(targets, dt_s, q_prev=q_prev)
+        if not settle and self.live is not None and self.live.write(quats, dt_s, q_prev=q_prev):
+            t2 = time.perf_counter()
+            result = self.retargeter.solve_written()
+            trunk = self.live.trunk_frame()
+        else:  # the first frame of a sequence, or a degenerate one: the numpy path
+            targets = self.target_builder(quats)
+            t2 = time.perf_counter()
+            if settle:
+                result = self.retargeter.settle(targets)
+            else:
+                result = self.retargeter.solve(targets, dt_s, q_prev=q_prev)
+            trunk = _trunk_frame(targets)
         t3 = time.perf_counter()
         self.stats.frames += 1
         self.stats.fallbacks += int(result.used_fallback)
@@ -139,7 +150,7 @@ class RetargetStep:
             q=np.asarray(result.q, dtype=np.float64),
             root_pos=np.asarray(root, dtype=np.float64),
             root_quat=np.asarray(quats[0], dtype=np.float64),
-            trunk_frame=_trunk_frame(targets),
+            trunk_frame=trunk,
             solve=result,
             times_s=(t1 - t0, t2 - t1, t3 - t2),
         )
