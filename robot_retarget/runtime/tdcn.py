@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.runtime.copy import rest_height_m
 from robot_retarget.runtime.frame import (
     F32Array,
@@ -29,6 +30,7 @@ from robot_retarget.runtime.frame import (
     unit_quaternions,
 )
 from robot_retarget.runtime.ring_conv import Conv, RingConv, f32_conv, leaky_relu
+from robot_retarget.runtime.tdcn_graphs import tdcn_stages
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 _J = len(CANONICAL_JOINTS)
@@ -182,7 +184,12 @@ class FastTDCNRetargeter:
     """Online causal TDCN on numpy: ``step`` (22, 4), (3,) → (22, 4), (3,)."""
 
     def __init__(
-        self, weights: TDCNWeights, source_offsets: npt.ArrayLike, target_offsets: npt.ArrayLike
+        self,
+        weights: TDCNWeights,
+        source_offsets: npt.ArrayLike,
+        target_offsets: npt.ArrayLike,
+        *,
+        jit: bool = True,
     ) -> None:
         src = check_offsets("source_offsets", source_offsets)
         tgt = check_offsets("target_offsets", target_offsets)
@@ -192,10 +199,31 @@ class FastTDCNRetargeter:
                 "this TDCN is non-causal (it needs future frames) and has no online step; "
                 "stream a causal TDCN (train --model tdcn --model-config causal=true)"
             )
-        self._src = src
         self._head = _Head(w, src, tgt)
-        self._kin = TreeKinematics(CANONICAL_PARENTS)
         self._stream = FrameStream()
+        # The geometry around the convolutions as two compiled calls (tdcn_graphs); their
+        # constant inputs (offsets, statistics, heights) are bound once.
+        inputs, outputs = tdcn_stages(CANONICAL_PARENTS, w.residual_rotations, jit=jit)
+        self._q = np.zeros((_J, 4))
+        self._vel = np.zeros(4)
+        self._inputs = CompiledFunction(
+            inputs,
+            args=[
+                self._q,
+                self._vel,
+                np.ascontiguousarray(src.reshape(-1)),
+                np.concatenate([w.pose_mean, w.quat_mean, w.vel_mean]),
+                np.concatenate([w.pose_std, w.quat_std, w.vel_std]),
+            ],
+        )
+        self._x, q_unit = self._inputs.res
+        self._raw = np.zeros(4 * _J + 4)
+        self._outputs = CompiledFunction(
+            outputs,
+            args=[self._raw, q_unit, self._vel, np.array([self._head.h_src, self._head.h_tgt])],
+        )
+        q_b, self._move = self._outputs.res
+        self._q_b = q_b.reshape(_J, 4)
         # The target's offsets are the same every frame: fold their share of the first
         # convolution (all taps, since the padding repeats them too) into its bias.
         kern, bias = w.expand
@@ -208,8 +236,6 @@ class FastTDCNRetargeter:
         self._pointwise = [RingConv(c, 1) for c in w.pointwise]
         self._features = RingConv(w.features, 1)
         self._out = RingConv(w.head, 1)
-        self._mean = np.concatenate([w.pose_mean, w.quat_mean, w.vel_mean])
-        self._std = np.concatenate([w.pose_std, w.quat_std, w.vel_std])
         self.reset()
 
     def reset(self) -> None:
@@ -224,17 +250,18 @@ class FastTDCNRetargeter:
         """One frame: (22, 4), (3,) → target rotations (22, 4) and root position (3,)."""
         q, root = check_frame(local_quats, root_pos)
         # Scaled quaternions from a sender are still rotations: make them unit (the torch
-        # model assumes unit input; for unit input this changes nothing beyond rounding).
-        q = unit_quaternions(q)
+        # model assumes unit input; for unit input this changes nothing beyond rounding). The
+        # root first, here, as the heading is read from it; the rest in the inputs stage.
+        q[0] = unit_quaternions(q[0])
         vel3, dyaw = self._stream.push(q, root)  # q is heading-free from here
-        vel = np.array([vel3[0], vel3[1], vel3[2], dyaw])
-        pose = self._kin.positions(matrices(q), self._src).reshape(-1)
-        x = np.concatenate([pose, _canonical(q).reshape(-1), vel])
-        x = ((x - self._mean) / self._std).astype(np.float32)
-        h = leaky_relu(self._expand.step(x))
+        self._q[...] = q
+        self._vel[:3] = vel3
+        self._vel[3] = dyaw
+        self._inputs()
+        h = leaky_relu(self._expand.step(self._x.astype(np.float32)))
         for dil, point in zip(self._dilated, self._pointwise, strict=True):
             h = h + leaky_relu(point.step(leaky_relu(dil.step(h))))
-        raw = self._out.step(leaky_relu(self._features.step(h))).astype(np.float64)
-        q_b, v_b = self._head.outputs(raw, q, vel)
-        out_pos, out_yaw = self._stream.integrate(v_b[:3], float(v_b[3]))
-        return self._stream.apply_heading(q_b, out_yaw), out_pos
+        np.copyto(self._raw, self._out.step(leaky_relu(self._features.step(h))))
+        self._outputs()
+        out_pos, out_yaw = self._stream.integrate(self._move[:3], float(self._move[3]))
+        return self._stream.apply_heading(self._q_b.copy(), out_yaw), out_pos

@@ -29,11 +29,11 @@ from tests.runtime.runtime_checks import (
 TOL = 1e-5
 
 
-def _tdcn(causal: bool = True, seed: int = 0) -> TDCN:
+def _tdcn(causal: bool = True, seed: int = 0, *, residual: bool = True) -> TDCN:
     """A small TDCN (the published depth: 3 blocks, receptive field 81) with every weight and
     statistic perturbed, batch norm included, so each exported number is exercised."""
     torch.manual_seed(seed)
-    model = build_model("tdcn", channels=16, causal=causal)
+    model = build_model("tdcn", channels=16, causal=causal, residual_rotations=residual)
     assert isinstance(model, TDCN)
     with torch.no_grad():
         for norm in (model.pose_norm, model.quat_norm, model.vel_norm, model.offset_norm):
@@ -67,11 +67,13 @@ def test_whole_clip_equals_torch_causal_and_centred() -> None:
         np.testing.assert_allclose(got_r, want_r, rtol=0, atol=TOL)
 
 
-def test_online_step_equals_torch_step_and_clip() -> None:
+@pytest.mark.parametrize("residual", [True, False])
+def test_online_step_equals_torch_step_and_clip(residual: bool) -> None:
+    """Both output forms (rotations composed after the input's, or the head's own)."""
     src = default_canonical_skeleton().offsets
     tgt = 0.4 * src
     quats, root = smooth_clip(100, seed=1)
-    model = _tdcn()
+    model = _tdcn(residual=residual)
     assert_same_stream(
         LoadedModel(name="tdcn", model=model), src, tgt, quats, root, FastTDCNRetargeter, TOL
     )
