@@ -17,17 +17,19 @@ flags as degenerate (its guard) take the numpy path.
 
 from __future__ import annotations
 
-import math
-
 import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import CompiledFunction, compile_graph
-from robot_retarget.errors import SolveError
 from robot_retarget.optimize.retargeter import Retargeter
-from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets, check_array
+from robot_retarget.optimize.targets import (
+    FrameTargetBuilder,
+    FrameTargets,
+    check_array,
+    check_dt,
+)
 from robot_retarget.optimize.targets_graph import guard_ok
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 
@@ -84,12 +86,7 @@ class LiveFrameSolver:
         step of ``dt_s``; ``q_prev`` overrides the last command. False: a degenerate frame
         (the caller takes the numpy path, which overwrites everything written here)."""
         q = check_array("local rotations", local_quats, (len(CANONICAL_JOINTS), 4))
-        try:
-            dt = float(dt_s)
-        except (TypeError, ValueError):
-            dt = math.nan
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise SolveError(f"dt_s must be a finite positive number of seconds, got {dt_s!r}")
+        dt = check_dt(dt_s)
         r = self.retargeter
         if q_prev is not None:
             r.set_previous_command(q_prev)

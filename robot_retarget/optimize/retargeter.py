@@ -36,7 +36,7 @@ from robot_retarget.optimize.objective import ParameterWriter, retarget_objectiv
 from robot_retarget.optimize.result import SolveResult, SolveStatus
 from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver
-from robot_retarget.optimize.targets import ClipTargets, FrameTargets, check_array
+from robot_retarget.optimize.targets import ClipTargets, FrameTargets, check_array, check_dt
 from robot_retarget.robot.config import RobotConfig
 
 _CONSTRAINT_TOL = 1e-6  # twist (rad) / ground (m) violation still called "satisfied"
@@ -218,15 +218,6 @@ class Retargeter:
         return np.asarray(self.problem.ee_function(np.asarray(q, dtype=float))).T.copy()
 
     # ----------------------------------------------------------------- targets → parameters
-    def _check_dt(self, dt_s: float) -> float:
-        try:
-            dt = float(dt_s)
-        except (TypeError, ValueError):
-            dt = math.nan
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise SolveError(f"dt_s must be a finite positive number of seconds, got {dt_s!r}")
-        return dt
-
     def _write_frame(
         self, s: BufferedSolver, params: ParameterWriter, t: int, targets: FrameTargets
     ) -> None:
@@ -259,7 +250,7 @@ class Retargeter:
         self, targets: FrameTargets, dt_s: float, *, q_prev: npt.ArrayLike | None = None
     ) -> SolveResult:
         """One frame. ``q_prev`` overrides the last command (e.g. a measured pose)."""
-        dt = self._check_dt(dt_s)
+        dt = check_dt(dt_s)
         s = self._online
         self._write_frame(s, self._online_params, 0, targets)  # validates before solving
         if q_prev is not None:
@@ -394,7 +385,7 @@ class Retargeter:
         violates a constraint keeps the frame-by-frame solution. ``q_start``: the pose before
         the first frame (default: the init pose). The online state (``q_prev``) is untouched.
         """
-        dt = self._check_dt(dt_s)
+        dt = check_dt(dt_s)
         total = len(targets)
         if total == 0:
             raise SolveError("the clip has no frames; nothing to retarget")

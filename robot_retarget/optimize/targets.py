@@ -16,6 +16,7 @@ effectors as positions relative to the hips, scaled to the robot.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -103,6 +104,17 @@ def check_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> Floa
             "no command was produced: check the upstream stage (network, motion source)"
         )
     return a
+
+
+def check_dt(dt_s: float) -> float:
+    """A time step in seconds as a finite positive float, else SolveError."""
+    try:
+        dt = float(dt_s)
+    except (TypeError, ValueError):
+        dt = math.nan
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise SolveError(f"dt_s must be a finite positive number of seconds, got {dt_s!r}")
+    return dt
 
 
 def _unit_rows(v: FloatArray, fallback: FloatArray) -> FloatArray:
