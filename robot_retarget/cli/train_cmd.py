@@ -96,6 +96,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="model constructor argument, e.g. hidden_size=256 (repeatable)",
     )
     parser.add_argument(
+        "--live-noise",
+        type=float,
+        default=0.0,
+        metavar="SHARE",
+        help="residual model: the share (0-1) of denoising samples corrupted as a live "
+        "position sender's (jitter, frozen joints, swapped limbs, bone-length noise, solved back "
+        "to rotations as the live path does) instead of with SAN's rotation noise",
+    )
+    parser.add_argument(
         "--loss-weight",
         action="append",
         default=[],
@@ -202,6 +211,7 @@ def run(args: argparse.Namespace) -> int:
             max_frames=args.max_frames,
             cache_dir=args.cache_dir,
             exclude_subjects=tuple(s for s in args.exclude_subjects.split(",") if s),
+            live_noise=args.live_noise,
         )
     last_val: dict[str, float] = {}
 

@@ -35,24 +35,24 @@ KINDS: tuple[str, ...] = (
 )
 
 JITTER_SIGMA_FRAC = 0.01
-_DISTAL = (
+DISTAL = (
     Joint.LeftHand, Joint.RightHand, Joint.LeftForeArm, Joint.RightForeArm,
     Joint.LeftFoot, Joint.RightFoot, Joint.LeftToeBase, Joint.RightToeBase,
 )  # fmt: skip
-_DISTAL_GAIN = 2.5
-_MIDDLE = (Joint.LeftLeg, Joint.RightLeg, Joint.LeftArm, Joint.RightArm)
-_MIDDLE_GAIN = 1.5
-_DROPOUT_FRAMES = (1, 30)
-_SWAP_FRAMES = (1, 10)
-_BONE_SIGMA = 0.05
+DISTAL_GAIN = 2.5
+MIDDLE = (Joint.LeftLeg, Joint.RightLeg, Joint.LeftArm, Joint.RightArm)
+MIDDLE_GAIN = 1.5
+DROPOUT_FRAMES = (1, 30)
+SWAP_FRAMES = (1, 10)
+BONE_SIGMA = 0.05
 _LATENCY_FRAMES = (2, 4)
 _LOW_RATE_HZ = 30.0
 # Left/right partners for swaps: (left joints, right joints) of an arm and of a leg.
-_ARM = (
+ARM = (
     (Joint.LeftShoulder, Joint.LeftArm, Joint.LeftForeArm, Joint.LeftHand),
     (Joint.RightShoulder, Joint.RightArm, Joint.RightForeArm, Joint.RightHand),
 )
-_LEG = (
+LEG = (
     (Joint.LeftUpLeg, Joint.LeftLeg, Joint.LeftFoot, Joint.LeftToeBase),
     (Joint.RightUpLeg, Joint.RightLeg, Joint.RightFoot, Joint.RightToeBase),
 )
@@ -88,8 +88,8 @@ def _intervals(
 
 def _jitter(pos: FloatArray, height_m: float, rng: np.random.Generator, severity: float) -> None:
     gain = np.ones(len(CANONICAL_JOINTS))
-    gain[list(_DISTAL)] = _DISTAL_GAIN
-    gain[list(_MIDDLE)] = _MIDDLE_GAIN
+    gain[list(DISTAL)] = DISTAL_GAIN
+    gain[list(MIDDLE)] = MIDDLE_GAIN
     sigma = JITTER_SIGMA_FRAC * height_m * severity * gain
     pos += rng.normal(size=pos.shape) * sigma[None, :, None]
 
@@ -98,13 +98,13 @@ def _freeze_joints(pos: FloatArray, rng: np.random.Generator, severity: float) -
     """Occluded joints hold their last seen position (what trackers do) for 1–30 frames."""
     n = len(pos)
     for joint in rng.choice(np.arange(1, len(CANONICAL_JOINTS)), size=6, replace=False):
-        for start, stop in _intervals(rng, n, _DROPOUT_FRAMES, 0.05 * severity):
+        for start, stop in _intervals(rng, n, DROPOUT_FRAMES, 0.05 * severity):
             pos[start:stop, joint] = pos[max(start - 1, 0), joint]
 
 
 def _swap(pos: FloatArray, rng: np.random.Generator, severity: float) -> None:
-    for left, right in (_ARM, _LEG):
-        for start, stop in _intervals(rng, len(pos), _SWAP_FRAMES, 0.03 * severity):
+    for left, right in (ARM, LEG):
+        for start, stop in _intervals(rng, len(pos), SWAP_FRAMES, 0.03 * severity):
             a, b = list(left), list(right)
             pos[start:stop, a + b] = pos[start:stop, b + a]
 
@@ -112,7 +112,7 @@ def _swap(pos: FloatArray, rng: np.random.Generator, severity: float) -> None:
 def _bone_lengths(pos: FloatArray, rng: np.random.Generator, severity: float) -> FloatArray:
     """Every bone vector scaled by its own (1 + N(0, 5 %)) per frame, rebuilt root outward."""
     out = pos.copy()
-    scale = 1.0 + rng.normal(0.0, _BONE_SIGMA * severity, size=pos.shape[:2])
+    scale = 1.0 + rng.normal(0.0, BONE_SIGMA * severity, size=pos.shape[:2])
     for j, parent in enumerate(CANONICAL_PARENTS):
         if parent >= 0:
             out[:, j] = out[:, parent] + (pos[:, j] - pos[:, parent]) * scale[:, j, None]
@@ -135,7 +135,7 @@ def corrupt_stream(
         _jitter(pos, skeleton_height(motion.skeleton), rng, severity)
     elif kind == "dropout":
         _freeze_joints(pos, rng, severity)
-        for start, stop in _intervals(rng, n, _DROPOUT_FRAMES, 0.05 * severity):
+        for start, stop in _intervals(rng, n, DROPOUT_FRAMES, 0.05 * severity):
             keep[start:stop] = False  # the sender is silent: no frame at all
         keep[0] = True
     elif kind == "swap":

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_retarget.bench_stats import TimingStats
+from robot_retarget.bench_stats import TimingStats, non_negative_int, positive_int
 from robot_retarget.errors import HardwareError
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import buses_from_config
@@ -55,11 +55,13 @@ STAGES = ("safety_clamp", "limit_check", "packet_build", "sdk_write", "read", "d
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
-    parser.add_argument("--frames", type=int, default=2000, help="timed cycles per path and mode")
-    parser.add_argument("--warmup", type=int, default=100, help="untimed cycles first")
+    parser.add_argument(
+        "--frames", type=positive_int, default=2000, help="timed cycles per path and mode"
+    )
+    parser.add_argument("--warmup", type=non_negative_int, default=100, help="untimed cycles first")
     parser.add_argument(
         "--rounds",
-        type=int,
+        type=positive_int,
         default=None,
         help="the paths alternate in this many rounds (default: every cycle, so load drifts "
         "on a shared machine hit all paths alike)",

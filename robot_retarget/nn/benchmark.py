@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.bench_stats import TimingStats
+from robot_retarget.bench_stats import TimingStats, non_negative_int, positive_int
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.nn.inference import (
@@ -47,11 +47,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=None,
         help=f"model name or checkpoint path (repeatable; default: {', '.join(_DEFAULT_MODELS)})",
     )
-    parser.add_argument("--frames", type=int, default=1000, help="timed frames (default 1000)")
-    parser.add_argument("--warmup", type=int, default=100, help="untimed frames first")
-    parser.add_argument("--clip-repeats", type=int, default=5, help="timed whole-clip passes")
     parser.add_argument(
-        "--threads", type=int, default=1, help="torch CPU threads (default 1: one core)"
+        "--frames", type=positive_int, default=1000, help="timed frames (default 1000)"
+    )
+    parser.add_argument("--warmup", type=non_negative_int, default=100, help="untimed frames first")
+    parser.add_argument(
+        "--clip-repeats", type=positive_int, default=5, help="timed whole-clip passes"
+    )
+    parser.add_argument(
+        "--threads", type=positive_int, default=1, help="torch CPU threads (default 1: one core)"
     )
     parser.add_argument(
         "--mode", choices=("online", "clip", "both"), default="both", help="what to time"

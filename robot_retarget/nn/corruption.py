@@ -13,11 +13,12 @@ evaluation's; ``p_clean`` leaves a share of samples untouched.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import torch
 
 from robot_retarget.nn import quaternion_torch as qt
+from robot_retarget.nn.live_noise import LiveNoise
 
 Tensor = torch.Tensor
 
@@ -36,6 +37,10 @@ class CorruptionRanges:
     sigma_frac: tuple[float, float] = (0.0, 0.02)
     zero_prob: tuple[float, float] = (0.0, 0.04)
     p_clean: float = 0.0
+    # The share of samples corrupted as a live position sender's instead
+    # (robot_retarget.nn.live_noise, applied by the residual training step), and its levels.
+    live_share: float = 0.0
+    live: LiveNoise = field(default_factory=LiveNoise)
 
 
 def corrupt_batch(

@@ -104,6 +104,9 @@ class TrainConfig:
     max_frames: int | None = None
     cache_dir: str | None = None
     exclude_subjects: tuple[str, ...] = ()
+    # Residual model: the share of denoising samples corrupted as a live position sender's
+    # (robot_retarget.nn.live_noise) instead of with SAN's rotation noise.
+    live_noise: float = 0.0
 
     def to_json(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -289,6 +292,12 @@ def train(
         check_loss_weights(config.model, config.loss_weights)
     except ValueError as exc:
         raise TrainError(f"--loss-weight: {exc}") from exc
+    if not 0.0 <= config.live_noise <= 1.0:
+        raise TrainError(f"--live-noise is a share of samples in [0, 1], got {config.live_noise}")
+    if config.live_noise > 0.0 and config.model != "residual":
+        raise TrainError(
+            f"--live-noise trains the residual model's denoiser; {config.model} has none"
+        )
     out = Path(config.out_dir)
     cfg_path = out / "config.json"
     state_path = out / "trainer_state.pt"
@@ -451,7 +460,13 @@ def train(
             losses = dp.mean(  # the global batch's losses, the same on every rank
                 {
                     **training_step(
-                        model, disc, batch, optimizers, config.fps, config.loss_weights
+                        model,
+                        disc,
+                        batch,
+                        optimizers,
+                        config.fps,
+                        config.loss_weights,
+                        live_noise=config.live_noise,
                     ),
                     **extra,
                 }

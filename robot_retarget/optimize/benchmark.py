@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_retarget.bench_stats import TimingStats
+from robot_retarget.bench_stats import TimingStats, positive_int
 from robot_retarget.errors import MotionFormatError
 from robot_retarget.optimize.retargeter import Retargeter
 from robot_retarget.optimize.targets import ClipTargets, targets_from_rotations
@@ -33,17 +33,10 @@ def _data_dir() -> Path:
     return Path(os.environ.get("ROBOT_RETARGET_DATA", default))
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path (op3)")
     parser.add_argument(
-        "--frames", type=_positive_int, default=1200, help="frames per mode (default 1200)"
+        "--frames", type=positive_int, default=1200, help="frames per mode (default 1200)"
     )
     parser.add_argument(
         "--clip",

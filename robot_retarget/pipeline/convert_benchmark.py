@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from robot_retarget.bench_stats import positive_int
+
 HELP = "Folder conversion on 1, 2, ... Ray workers: frames/s, per-clip time, speed-up."
 
 _COMPARED = ("q", "root_pos", "root_quat")
@@ -39,12 +41,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
     parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
     parser.add_argument("--workers", default="1,2", help="worker counts, comma separated")
-    parser.add_argument("--clips", type=int, default=20, help="clips to convert")
+    parser.add_argument("--clips", type=positive_int, default=20, help="clips to convert")
     parser.add_argument(
-        "--max-frames", type=int, default=600, help="convert each clip's first N frames"
+        "--max-frames", type=positive_int, default=600, help="convert each clip's first N frames"
     )
     parser.add_argument(
-        "--repeat", type=int, default=3, help="rounds of every worker count, interleaved"
+        "--repeat", type=positive_int, default=3, help="rounds of every worker count, interleaved"
     )
     parser.add_argument(
         "--no-reference",

@@ -25,15 +25,17 @@ from typing import Any
 
 import numpy as np
 
+from robot_retarget.bench_stats import positive_float, positive_int
+
 HELP = "Live stream on the simulated bus: late frames and tick jitter, with and without --view."
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
     parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
-    parser.add_argument("--rate", type=float, default=125.0, help="control rate in Hz")
-    parser.add_argument("--seconds", type=float, default=20.0, help="length of each run")
-    parser.add_argument("--repeats", type=int, default=2, help="runs of each variant")
+    parser.add_argument("--rate", type=positive_float, default=125.0, help="control rate in Hz")
+    parser.add_argument("--seconds", type=positive_float, default=20.0, help="length of each run")
+    parser.add_argument("--repeats", type=positive_int, default=2, help="runs of each variant")
     parser.add_argument("--view", action="store_true", help="also run with the live page")
     parser.add_argument(
         "--client",

@@ -42,6 +42,7 @@ from robot_retarget.nn.features import (
     skeleton_height,
 )
 from robot_retarget.nn.features import pmnet_scale as scale_of
+from robot_retarget.nn.live_noise import corrupt_live
 from robot_retarget.nn.losses import (
     TWIST_ALPHA_RAD,
     discriminator_loss,
@@ -307,9 +308,23 @@ def residual_training_step(
     vel_err = (out.features.root_vel[..., :3] / h_tgt[:, None, None] - scaled) ** 2
     root = vel_err.sum(-1).mean(-1) * 1e3
 
-    noisy_q, noisy_root = corrupt_batch(
-        batch.src_local_quats, batch.src_root_pos, h_src, corruption or CorruptionRanges()
-    )
+    ranges = corruption or CorruptionRanges()
+    noisy_q, noisy_root = corrupt_batch(batch.src_local_quats, batch.src_root_pos, h_src, ranges)
+    if ranges.live_share > 0.0:
+        # A share of the samples as a live position sender delivers them instead.
+        live = torch.nonzero(torch.rand(noisy_q.shape[0]) < ranges.live_share).flatten()
+        if live.numel():
+            live = live.to(noisy_q.device)
+            live_q, live_root = corrupt_live(
+                batch.src_local_quats[live],
+                batch.src_root_pos[live],
+                src_off[live],
+                h_src[live],
+                ranges.live,
+                fps,
+            )
+            noisy_q, noisy_root = noisy_q.clone(), noisy_root.clone()
+            noisy_q[live], noisy_root[live] = live_q, live_root
     noisy = compute_features(noisy_q, noisy_root, src_off)
     out_noisy = model.retarget_features(noisy, noisy_root[:, 0], src_off, tgt_off)
     denoise = denoising_loss(out_noisy.extras["pos_denoised"], clean.local_pos, src_off)
@@ -397,12 +412,20 @@ def training_step(
     optimizers: Optimizers,
     fps: float = DEFAULT_FPS,
     weights: Mapping[str, float] | None = None,
+    *,
+    live_noise: float = 0.0,
 ) -> dict[str, float]:
     """One step of whichever trainable model this is: its default loss weights (the papers'
-    for NKN and PMnet) with ``weights`` overriding some of them."""
+    for NKN and PMnet) with ``weights`` overriding some of them; ``live_noise`` (residual
+    model): the share of denoising samples corrupted as a live position sender's."""
     if isinstance(model, ResidualRetargeter) and disc is None:
         w_res = loss_weights(ResidualLossWeights(), weights)
-        return residual_training_step(model, batch, optimizers, w_res, fps=fps)
+        corruption = CorruptionRanges(live_share=live_noise)
+        return residual_training_step(model, batch, optimizers, w_res, corruption, fps=fps)
+    if live_noise > 0.0:
+        raise ValueError(
+            f"--live-noise trains the residual model's denoiser; {type(model).__name__} has none"
+        )
     if isinstance(model, NKN) and isinstance(disc, NKNDiscriminator):
         w_nkn = loss_weights(NKNLossWeights(), weights)
         return nkn_training_step(model, disc, batch, optimizers, w_nkn)

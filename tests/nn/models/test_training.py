@@ -172,3 +172,23 @@ def test_batch_moves_between_devices(batch: RetargetBatch) -> None:
     assert moved.real_root_pos is not None
     assert moved.real_root_pos.device.type == "meta"
     assert batch.to("cpu").src_offsets.device.type == "cpu"
+
+
+def test_live_noise_trains_the_residual_denoiser_only(
+    tiny_model: Build, tiny_discriminator: BuildDisc, batch: RetargetBatch
+) -> None:
+    """``--live-noise``: the residual step corrupts a share of its denoising samples as a live
+    position sender's (a different denoising loss, still finite); other models refuse it."""
+    losses = []
+    for share in (0.0, 1.0):
+        model = tiny_model("residual")
+        opt = make_optimizers(model, None)
+        torch.manual_seed(2)
+        losses.append(training_step(model, None, batch, opt, live_noise=share))
+    assert all(torch.isfinite(torch.tensor(list(x.values()))).all() for x in losses)
+    assert losses[0]["denoise"] != losses[1]["denoise"]
+    assert losses[0]["effector"] == losses[1]["effector"]  # the clean pass is untouched
+    model = tiny_model("pmnet")
+    disc = tiny_discriminator("pmnet")
+    with pytest.raises(ValueError, match="live-noise"):
+        training_step(model, disc, batch, make_optimizers(model, disc), live_noise=0.5)
