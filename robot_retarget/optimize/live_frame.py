@@ -52,9 +52,9 @@ class NotAffineError(ValueError):
 class LiveFrameSolver:
     """One robot's online solve fed straight from canonical rotations (the live path).
 
-    :meth:`write` computes the frame's targets and writes the online problem; :meth:`solve`
-    solves it (:meth:`Retargeter.solve_written`). The same numbers as
-    ``retargeter.solve(builder(quats), dt)`` to rounding (tested).
+    :meth:`write` computes the frame's targets and writes the online problem;
+    :meth:`Retargeter.solve_written` then solves it. The same commands as
+    ``retargeter.solve(builder(quats), dt)`` (tested bit for bit on the demo).
     """
 
     def __init__(self, retargeter: Retargeter, builder: FrameTargetBuilder) -> None:

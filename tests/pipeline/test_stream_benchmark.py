@@ -32,7 +32,12 @@ def test_plain_and_watched_runs_are_reported() -> None:
 
 
 def test_bad_settings_are_refused() -> None:
+    """On the command line, before any work (a usage error); and from code, by ``run``."""
     from robot_retarget.errors import RetargetError
 
+    with pytest.raises(SystemExit):
+        _args("--repeats", "0")
+    args = _args()
+    args.repeats = 0
     with pytest.raises(RetargetError, match="--repeats"):
-        stream_benchmark.run(_args("--repeats", "0"))
+        stream_benchmark.run(args)
