@@ -65,6 +65,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "for the model and copy-scaled, against clean input",
     )
     parser.add_argument(
+        "--one-euro",
+        default=None,
+        metavar="MIN_HZ,BETA",
+        help="with --corrupt: the loop smooths its input with this One-Euro filter, as "
+        "stream --one-euro does",
+    )
+    parser.add_argument(
         "--input",
         choices=("3d", "2d"),
         default="3d",
@@ -166,13 +173,19 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
     from robot_retarget.errors import RetargetError
     from robot_retarget.evaluation.live_corruption import KINDS
     from robot_retarget.evaluation.robustness import markdown, robustness
+    from robot_retarget.pipeline.input_filter import OneEuroSettings
 
     kinds = KINDS if args.corrupt == "all" else tuple(k for k in args.corrupt.split(",") if k)
     unknown = [k for k in kinds if k not in KINDS]
     if unknown:
         raise RetargetError(f"--corrupt: unknown kind(s) {unknown}; choose from {', '.join(KINDS)}")
+    try:
+        smooth = None if args.one_euro is None else OneEuroSettings.parse(args.one_euro)
+    except ValueError as exc:
+        raise RetargetError(str(exc)) from None
     models = [model] if model == "copy-scaled" else [model, "copy-scaled"]
     rows = robustness(config, clips, models, kinds, max_frames=args.max_frames or 600,
+                      input_filter=smooth,
                       progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True))  # fmt: skip
     if args.json:
         print(json.dumps([r.__dict__ for r in rows], indent=2))

@@ -27,6 +27,7 @@ from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
+from robot_retarget.pipeline.input_filter import OneEuroSettings
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -35,6 +36,13 @@ if TYPE_CHECKING:
 
 NAME = "stream"
 HELP = "Drive a robot (or the simulator) live from a replayed clip or a mocap stream."
+
+
+def _one_euro(text: str) -> OneEuroSettings:
+    try:
+        return OneEuroSettings.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -53,6 +61,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_port_argument(parser)
     parser.add_argument("--rate", type=float, help="control rate in Hz (default: the config's)")
     parser.add_argument("--duration", type=float, help="stop after S seconds")
+    parser.add_argument(
+        "--one-euro",
+        type=_one_euro,
+        metavar="MIN_HZ,BETA",
+        help="smooth the input with a One-Euro filter (e.g. 2,0.3: 2 Hz cutoff when still, "
+        "+0.3 Hz per rad/s): less servo chatter from a jittery pose estimator, some lag; off by "
+        "default",
+    )
     parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
     parser.add_argument("--loop", action="store_true", help="replay: start over at the end")
     parser.add_argument("--speed", type=float, default=1.0, help="replay speed factor")
@@ -162,6 +178,7 @@ def run(args: argparse.Namespace) -> int:
         duration_s=args.duration,
         report_every_s=args.stats_every,
         wake_on_input=args.wake_on_input,
+        input_filter=args.one_euro,
     )
     page = None
     mailbox = None

@@ -20,6 +20,7 @@ from robot_retarget.evaluation.robot.metrics import segment_angles
 from robot_retarget.evaluation.robot.segments import RobotBodyModel, human_body_points
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.pipeline.floating_base import base_rotations
+from robot_retarget.pipeline.input_filter import OneEuroSettings
 from robot_retarget.pipeline.loop import ControlLoop, LoopSettings, Mode
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.sim.backend import SimBackend
@@ -103,13 +104,14 @@ def score_live(
     *,
     settle_s: float = 1.0,
     body: RobotBodyModel | None = None,
+    input_filter: OneEuroSettings | None = None,
 ) -> LiveScore:
     """Run ``stream`` through the loop (clip rate ``clean.fps`` as the sender's nominal rate)
     and score the commands against ``clean``."""
     config = step.config
     clock = _SimClock()
     # Join the motion at once: the ramp is the same for every kind and is not what is scored.
-    settings = LoopSettings(ramp_speed_fraction=1.0, ramp_min_s=0.0)
+    settings = LoopSettings(ramp_speed_fraction=1.0, ramp_min_s=0.0, input_filter=input_filter)
     source = StreamSource(stream, clean.skeleton, clean.fps)
     loop = ControlLoop(
         step, source, SimBackend(config, clock=clock.now), settings, record=True,

@@ -19,6 +19,7 @@ from robot_retarget.evaluation.live_corruption import KINDS, corrupt_stream
 from robot_retarget.evaluation.live_replay import score_live
 from robot_retarget.evaluation.robot.segments import RobotBodyModel
 from robot_retarget.motion.human_motion import load_motion
+from robot_retarget.pipeline.input_filter import OneEuroSettings
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 
@@ -40,9 +41,11 @@ def robustness(
     *,
     max_frames: int | None = 600,
     seed: int = 0,
+    input_filter: OneEuroSettings | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> list[RobustnessRow]:
-    """Mean over ``clips`` of each model under ``clean`` and each kind (same noise per clip)."""
+    """Mean over ``clips`` of each model under ``clean`` and each kind (same noise per clip);
+    ``input_filter``: the loop smooths its input (``stream --one-euro``)."""
     body = RobotBodyModel(config)
     rows = []
     for model in models:
@@ -54,7 +57,8 @@ def robustness(
             step = RetargetStep(config, model, motion.skeleton)
             for kind in scores:
                 rng = np.random.default_rng(seed + k)
-                s = score_live(step, motion, corrupt_stream(motion, kind, rng), body=body)
+                stream = corrupt_stream(motion, kind, rng)
+                s = score_live(step, motion, stream, body=body, input_filter=input_filter)
                 scores[kind].append((s.direction_deg, s.jerk_rad_s3))
         for kind, vals in scores.items():
             a = np.array(vals)

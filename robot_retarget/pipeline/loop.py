@@ -35,6 +35,7 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.safety import ClipStats, SafetyLayer
 from robot_retarget.hardware.types import JointCommand
+from robot_retarget.pipeline.input_filter import OneEuroFilter, OneEuroSettings
 from robot_retarget.pipeline.interpolation import FrameInterpolator
 from robot_retarget.pipeline.latency_budget import LatencyBudget
 from robot_retarget.pipeline.live_mailbox import LiveFrame, Mailbox
@@ -81,6 +82,9 @@ class LoopSettings:
     # restarts from there, instead of waiting up to a period. Sources that cannot be waited
     # on (replay) tick as usual.
     wake_on_input: bool = False
+    # An opt-in One-Euro filter on the interpolated input (robot_retarget.pipeline.input_filter):
+    # less servo chatter from a jittery pose estimator, at the price of some lag.
+    input_filter: OneEuroSettings | None = None
 
     def __post_init__(self) -> None:
         if self.rate_hz is not None and not self.rate_hz > 0:
@@ -169,6 +173,8 @@ class ControlLoop:
         self._last_seq: int | None = None
         self._start_q: FloatArray | None = None
         self._settle_next = False  # the next step solves its frame to its optimum
+        f = self.settings.input_filter
+        self._input_filter = None if f is None else OneEuroFilter(f)
         self._ramp_done = False
         self._k = 0  # tick counter: command stamps are k periods apart
         # A watcher's (stream --view) one-slot mailbox: one LiveFrame per command, never waited on.
@@ -382,8 +388,13 @@ class ControlLoop:
         sample = interp.sample(now)
         if sample is None:
             return
+        local, root = sample.local_quats, sample.root_pos
+        if self._input_filter is not None:
+            if self._settle_next:  # a sequence starts: the filter starts over with it
+                self._input_filter.reset()
+            local, root = self._input_filter(local, root, self._dt_s)
         t_sampled = self.clock()
-        out = self.step(sample.local_quats, sample.root_pos, self._dt_s, settle=self._settle_next)
+        out = self.step(local, root, self._dt_s, settle=self._settle_next)
         t_stepped = self.clock()
         self._settle_next = False
         q = out.q

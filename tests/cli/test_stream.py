@@ -163,6 +163,21 @@ def test_ports_use_the_bus_syntax_and_must_exist() -> None:
                              "--backend", "dynamixel", "--port", "legs=/dev/null"))  # fmt: skip
 
 
+def test_a_smoothed_replay_stays_within_the_limits(tmp_path: Path) -> None:
+    """``--one-euro``: the loop smooths its input; every command is still inside the limits."""
+    record = tmp_path / "smoothed.npz"
+    args = _args("--robot", "op3", "--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}",
+                 "--backend", "sim", "--duration", "1.0", "--one-euro", "2,0.3",
+                 "--record", str(record))  # fmt: skip
+    assert args.one_euro.min_cutoff_hz == 2.0
+    assert stream_cmd.run(args) == 0
+    traj = RobotTrajectory.read(record)
+    config = load_robot_config("op3")
+    assert check_limits(config, traj.q, 1 / traj.fps, q_start=config.init_pose).ok
+    with pytest.raises(SystemExit):
+        _args("--source", "udp://127.0.0.1:0", "--one-euro", "2")
+
+
 def test_bad_numbers_are_refused() -> None:
     from robot_retarget.errors import RetargetError
 
