@@ -1,4 +1,5 @@
-"""The fixed-rate control loop: source → interpolation → RetargetStep → safety → backend.
+"""The fixed-rate control loop: source → interpolation (→ an opt-in One-Euro input filter) →
+RetargetStep → safety → backend.
 
 One thread (the caller's) owns the backend; sources receive on their own threads. Each tick
 (default: the robot config's ``control_rate_hz``) drains the source, samples the interpolated
