@@ -14,42 +14,33 @@ from __future__ import annotations
 import torch
 
 from robot_retarget.nn import quaternion_torch as qt
-from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton import position_solve_spec as spec
+from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
 
 Tensor = torch.Tensor
 
-_EPS = 1e-9  # as from_positions
-_MIN_SECONDARY_M = 1e-3
-_J = len(CANONICAL_PARENTS)
-# (joint, primary candidates in order, side pairs in order): as from_positions' _TRIADS,
-# _PRIMARY_CHAIN and _TRIAD_FALLBACK.
-_TRIADS: dict[int, tuple[tuple[int, ...], tuple[tuple[int, int], ...]]] = {
-    Joint.Hips: (
-        (Joint.Spine, Joint.Spine1, Joint.Spine2, Joint.Neck),
-        ((Joint.LeftUpLeg, Joint.RightUpLeg),),
-    ),
-    Joint.Spine2: (
-        (Joint.Neck, Joint.Head),
-        ((Joint.LeftShoulder, Joint.RightShoulder), (Joint.LeftArm, Joint.RightArm)),
-    ),
+# Per triad joint, as lines (a, b) from point b to point a: the primary axis's candidates
+# (the first is the default), then the side line's (the last is the default).
+_TRIADS: dict[int, tuple[tuple[tuple[int, int], ...], tuple[tuple[int, int], ...]]] = {
+    j: (
+        tuple((c, j) for c in spec.PRIMARY_CHAIN[j]),
+        (side, *((spec.TRIAD_FALLBACK[j],) if j in spec.TRIAD_FALLBACK else ())),
+    )
+    for j, (_primary, side) in spec.TRIADS.items()
 }
-_CHILD: dict[int, int] = {}
-for _j in range(_J):
-    _kids = [c for c, p in enumerate(CANONICAL_PARENTS) if p == _j]
-    if len(_kids) == 1:
-        _CHILD[_j] = _kids[0]
+_CHILD = spec.single_children(CANONICAL_PARENTS)
 
 
 def _frame(primary: Tensor, secondary: Tensor) -> tuple[Tensor, Tensor]:
     """Orthonormal columns (…, 3, 3) (primary exactly, secondary made orthogonal, their cross)
     and a validity mask (…): False where either axis is (nearly) zero."""
     n1 = torch.linalg.vector_norm(primary, dim=-1, keepdim=True)
-    e1 = primary / n1.clamp_min(_EPS)
+    e1 = primary / n1.clamp_min(spec.EPS)
     s = secondary - e1 * (e1 * secondary).sum(-1, keepdim=True)
     n2 = torch.linalg.vector_norm(s, dim=-1, keepdim=True)
-    e2 = s / n2.clamp_min(_EPS)
+    e2 = s / n2.clamp_min(spec.EPS)
     e3 = torch.linalg.cross(e1, e2, dim=-1)
-    ok = (n1[..., 0] >= _EPS) & (n2[..., 0] >= _EPS)
+    ok = (n1[..., 0] >= spec.EPS) & (n2[..., 0] >= spec.EPS)
     return torch.stack([e1, e2, e3], dim=-1), ok
 
 
@@ -76,25 +67,18 @@ def _shortest_arc(a: Tensor, b: Tensor) -> Tensor:
     return arc
 
 
-def _pick(points: Tensor, rest: Tensor, joint: int, candidates: tuple[int, ...]) -> Tensor:
-    """Per sample, the first candidate whose rest position lies ≥ 1 mm from ``joint``'s (the
-    first one when none does): a (…, 3) vector from ``points`` (…, J, 3), ``rest`` (B, J, 3)."""
-    chosen = points[..., candidates[0], :] - points[..., joint, :]
-    for c in reversed(candidates):
-        far = torch.linalg.vector_norm(rest[:, c] - rest[:, joint], dim=-1) >= _MIN_SECONDARY_M
+def _first_long(
+    points: Tensor, rest: Tensor, lines: tuple[tuple[int, int], ...], fallback: int
+) -> Tensor:
+    """Per sample, ``points[a] − points[b]`` (…, 3) for the first line (a, b) of ``lines`` whose
+    rest length is ≥ 1 mm, and for the line ``fallback`` where none is; ``points`` (…, J, 3),
+    ``rest`` (B, J, 3)."""
+    a, b = lines[fallback]
+    chosen = points[..., a, :] - points[..., b, :]
+    for a, b in reversed(lines):
+        far = torch.linalg.vector_norm(rest[:, a] - rest[:, b], dim=-1) >= spec.MIN_SECONDARY_M
         far = far.view(far.shape[0], *([1] * (points.dim() - 3)), 1)
-        chosen = torch.where(far, points[..., c, :] - points[..., joint, :], chosen)
-    return chosen
-
-
-def _side(points: Tensor, rest: Tensor, pairs: tuple[tuple[int, int], ...]) -> Tensor:
-    """The first side line (left − right) whose rest length is ≥ 1 mm (the last pair else)."""
-    left, right = pairs[-1]
-    chosen = points[..., left, :] - points[..., right, :]
-    for left, right in reversed(pairs[:-1]):
-        far = torch.linalg.vector_norm(rest[:, left] - rest[:, right], dim=-1) >= _MIN_SECONDARY_M
-        far = far.view(far.shape[0], *([1] * (points.dim() - 3)), 1)
-        chosen = torch.where(far, points[..., left, :] - points[..., right, :], chosen)
+        chosen = torch.where(far, points[..., a, :] - points[..., b, :], chosen)
     return chosen
 
 
@@ -114,9 +98,13 @@ def positions_to_rotations(positions: Tensor, offsets: Tensor) -> Tensor:
     for j, parent in enumerate(CANONICAL_PARENTS):
         g_parent = eye.expand(*frames, 3, 3) if parent < 0 else glob[parent]
         if j in _TRIADS:
-            prims, pairs = _TRIADS[j]
-            cur, ok_cur = _frame(_pick(positions, rest, j, prims), _side(positions, rest, pairs))
-            ref, ok_ref = _frame(_pick(rest_t, rest, j, prims), _side(rest_t, rest, pairs))
+            prims, sides = _TRIADS[j]
+            cur, ok_cur = _frame(
+                _first_long(positions, rest, prims, 0), _first_long(positions, rest, sides, -1)
+            )
+            ref, ok_ref = _frame(
+                _first_long(rest_t, rest, prims, 0), _first_long(rest_t, rest, sides, -1)
+            )
             g = cur @ ref.transpose(-1, -2)
             ok = (ok_cur & ok_ref)[..., None, None]
             g = torch.where(ok, g, g_parent)
@@ -129,14 +117,14 @@ def positions_to_rotations(positions: Tensor, offsets: Tensor) -> Tensor:
         else:
             rest_dir = offsets[:, child]
             rest_norm = torch.linalg.vector_norm(rest_dir, dim=-1)
-            rest_unit = (rest_dir / rest_norm.clamp_min(_EPS)[:, None]).view(b, 1, 3)
+            rest_unit = (rest_dir / rest_norm.clamp_min(spec.EPS)[:, None]).view(b, 1, 3)
             d = (
                 g_parent.transpose(-1, -2)
                 @ (positions[..., child, :] - positions[..., j, :])[..., None]
             )[..., 0]
             norm = torch.linalg.vector_norm(d, dim=-1)
-            arc = _shortest_arc(rest_unit.expand_as(d), d / norm.clamp_min(_EPS)[..., None])
-            ok = ((norm > _EPS) & (rest_norm > _EPS).view(b, 1))[..., None, None]
+            arc = _shortest_arc(rest_unit.expand_as(d), d / norm.clamp_min(spec.EPS)[..., None])
+            ok = ((norm > spec.EPS) & (rest_norm > spec.EPS).view(b, 1))[..., None, None]
             loc = torch.where(ok, arc, eye.expand(*frames, 3, 3))
         local.append(loc)
         glob.append(g_parent @ loc)

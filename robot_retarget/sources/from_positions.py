@@ -19,38 +19,29 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.position_solve_spec import (
+    EPS,
+    MIN_SECONDARY_M,
+    PRIMARY_CHAIN,
+    TRIAD_FALLBACK,
+    TRIADS,
+    single_children,
+)
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources.positions_graph import positions_function
 
-_EPS = 1e-9
 _IDENTITY = np.eye(3)
-# Joints whose rotation comes from a triad: (joint, primary child point, secondary (left, right)).
-# Spine2 uses its own children (the shoulder joints), which move rigidly with it; when a
-# skeleton puts both shoulder joints at one point, the arms' line is used instead.
-_TRIADS: dict[int, tuple[int, tuple[int, int]]] = {
-    Joint.Hips: (Joint.Spine, (Joint.LeftUpLeg, Joint.RightUpLeg)),
-    Joint.Spine2: (Joint.Neck, (Joint.LeftShoulder, Joint.RightShoulder)),
-}
-_TRIAD_FALLBACK: dict[int, tuple[int, int]] = {Joint.Spine2: (Joint.LeftArm, Joint.RightArm)}
-# The primary axis may come from a joint further up when the nearest one sits on the joint
-# itself (CMU MotionBuilder skeletons put Spine at the Hips: a zero-length axis would leave the
-# Hips unrotated, and every pose turned by the performer's heading, up to 90° off).
-_PRIMARY_CHAIN: dict[int, tuple[int, ...]] = {
-    Joint.Hips: (Joint.Spine, Joint.Spine1, Joint.Spine2, Joint.Neck),
-    Joint.Spine2: (Joint.Neck, Joint.Head),
-}
-_MIN_SECONDARY_M = 1e-3
 
 
 def _frame(primary: FloatArray, secondary: FloatArray) -> FloatArray | None:
     """Orthonormal columns: primary exactly, secondary made orthogonal, then their cross."""
     n1 = math.sqrt(float(primary @ primary))
-    if n1 < _EPS:
+    if n1 < EPS:
         return None
     e1 = primary / n1
     s = secondary - e1 * float(e1 @ secondary)
     n2 = math.sqrt(float(s @ s))
-    if n2 < _EPS:
+    if n2 < EPS:
         return None
     e2 = s / n2
     (x1, y1, z1), (x2, y2, z2) = e1.tolist(), e2.tolist()
@@ -66,27 +57,23 @@ class PositionsToRotations:
             raise ValueError("PositionsToRotations needs a canonical 22-joint skeleton")
         self.skeleton = skeleton
         self._rest = skeleton.rest_positions()
-        children: dict[int, list[int]] = {}
-        for j, p in enumerate(CANONICAL_PARENTS):
-            if p >= 0:
-                children.setdefault(p, []).append(j)
-        self._child = {j: c[0] for j, c in children.items() if len(c) == 1}
+        self._child = single_children(CANONICAL_PARENTS)
         self._rest_dirs: dict[int, FloatArray | None] = {}
         for j, c in self._child.items():
             d = skeleton.offsets[c]
             norm = float(np.linalg.norm(d))
-            self._rest_dirs[j] = d / norm if norm > _EPS else None
+            self._rest_dirs[j] = d / norm if norm > EPS else None
         self._rest_frames: dict[int, FloatArray | None] = {}
         self._triads: dict[int, tuple[int, tuple[int, int]]] = {}
-        for j, (prim, (left, right)) in _TRIADS.items():
+        for j, (prim, (left, right)) in TRIADS.items():
             prim = next(
-                (c for c in _PRIMARY_CHAIN[j]
-                 if np.linalg.norm(self._rest[c] - self._rest[j]) >= _MIN_SECONDARY_M),
+                (c for c in PRIMARY_CHAIN[j]
+                 if np.linalg.norm(self._rest[c] - self._rest[j]) >= MIN_SECONDARY_M),
                 prim,
             )  # fmt: skip
             side = self._rest[left] - self._rest[right]
-            if np.linalg.norm(side) < _MIN_SECONDARY_M and j in _TRIAD_FALLBACK:
-                left, right = _TRIAD_FALLBACK[j]
+            if np.linalg.norm(side) < MIN_SECONDARY_M and j in TRIAD_FALLBACK:
+                left, right = TRIAD_FALLBACK[j]
                 side = self._rest[left] - self._rest[right]
             self._triads[j] = (prim, (left, right))
             self._rest_frames[j] = _frame(self._rest[prim] - self._rest[j], side)
@@ -99,7 +86,7 @@ class PositionsToRotations:
                 self._rest_dirs,
                 self._triads,
                 self._rest_frames,
-                _EPS,
+                EPS,
             )
         )
         self._p_in = self._graph.args[0].reshape(-1, 3)
@@ -141,7 +128,7 @@ class PositionsToRotations:
             if child is not None and rest_dir is not None:
                 d_cur = g_parent.T @ (p[child] - p[j])
                 norm = math.sqrt(float(d_cur @ d_cur))
-                if norm > _EPS:
+                if norm > EPS:
                     loc = _shortest_arc(rest_dir, d_cur / norm)
             local[j] = loc
             glob[j] = g_parent @ loc
