@@ -35,13 +35,13 @@ KINDS: tuple[str, ...] = (
 )
 
 JITTER_SIGMA_FRAC = 0.01
-DISTAL = (
+_DISTAL = (
     Joint.LeftHand, Joint.RightHand, Joint.LeftForeArm, Joint.RightForeArm,
     Joint.LeftFoot, Joint.RightFoot, Joint.LeftToeBase, Joint.RightToeBase,
 )  # fmt: skip
-DISTAL_GAIN = 2.5
-MIDDLE = (Joint.LeftLeg, Joint.RightLeg, Joint.LeftArm, Joint.RightArm)
-MIDDLE_GAIN = 1.5
+_DISTAL_GAIN = 2.5
+_MIDDLE = (Joint.LeftLeg, Joint.RightLeg, Joint.LeftArm, Joint.RightArm)
+_MIDDLE_GAIN = 1.5
 DROPOUT_FRAMES = (1, 30)
 SWAP_FRAMES = (1, 10)
 BONE_SIGMA = 0.05
@@ -86,11 +86,17 @@ def _intervals(
     return out
 
 
-def _jitter(pos: FloatArray, height_m: float, rng: np.random.Generator, severity: float) -> None:
+def jitter_gains() -> FloatArray:
+    """(J,) each joint's jitter σ as a multiple of the trunk's: 2.5 at the distal joints, 1.5
+    at elbows and knees, 1 elsewhere."""
     gain = np.ones(len(CANONICAL_JOINTS))
-    gain[list(DISTAL)] = DISTAL_GAIN
-    gain[list(MIDDLE)] = MIDDLE_GAIN
-    sigma = JITTER_SIGMA_FRAC * height_m * severity * gain
+    gain[list(_DISTAL)] = _DISTAL_GAIN
+    gain[list(_MIDDLE)] = _MIDDLE_GAIN
+    return gain
+
+
+def _jitter(pos: FloatArray, height_m: float, rng: np.random.Generator, severity: float) -> None:
+    sigma = JITTER_SIGMA_FRAC * height_m * severity * jitter_gains()
     pos += rng.normal(size=pos.shape) * sigma[None, :, None]
 
 

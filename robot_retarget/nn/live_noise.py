@@ -44,13 +44,6 @@ class LiveNoise:
     p_bone_length: float = 0.3
 
 
-def _gains(dtype: torch.dtype, device: torch.device) -> Tensor:
-    g = torch.ones(len(CANONICAL_PARENTS), dtype=dtype, device=device)
-    g[list(live.DISTAL)] = live.DISTAL_GAIN
-    g[list(live.MIDDLE)] = live.MIDDLE_GAIN
-    return g
-
-
 def _interval(
     frames: int, lengths: tuple[int, int], fps: float, generator: torch.Generator | None
 ) -> tuple[int, int]:
@@ -91,7 +84,8 @@ def corrupt_live(
         return uniform(0.0, 1.0, b) < p
 
     scale = uniform(*noise.jitter, b) * live.JITTER_SIGMA_FRAC * heights
-    sigma = scale[:, None, None, None] * _gains(pos.dtype, pos.device)[None, None, :, None]
+    gains = torch.as_tensor(live.jitter_gains(), dtype=pos.dtype, device=pos.device)
+    sigma = scale[:, None, None, None] * gains[None, None, :, None]
     pos = pos + normal(*pos.shape) * sigma
     bones = chance(noise.p_bone_length)
     if bool(bones.any()):
