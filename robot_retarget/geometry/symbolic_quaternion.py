@@ -20,6 +20,8 @@ Mat = Sequence[ca.SX]  # 3×3, row-major
 
 # Below this angle sin(a/2)/a is replaced by its series 1/2 − a²/48 (exact in float64 there).
 _SMALL_ANGLE = 1e-4
+# A quaternion this short has no direction: unit_or_identity gives the identity.
+_ZERO_QUAT_NORM = 1e-12
 
 
 def qmul(a: Quat, b: Quat) -> Quat:
@@ -126,6 +128,14 @@ def from_rotvec(r: Vec) -> Quat:
 def normalize(q: Quat) -> Quat:
     n = ca.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+
+
+def unit_or_identity(q: Quat) -> Quat:
+    """``q / |q|``, or the identity where |q| ≤ 1e-12 (as ``frame.unit_quaternions``)."""
+    n = ca.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    ok = n > _ZERO_QUAT_NORM
+    d = ca.fmax(n, _ZERO_QUAT_NORM)
+    return tuple(ca.if_else(ok, c / d, ca.SX(1.0 if i == 0 else 0.0)) for i, c in enumerate(q))
 
 
 def matrix(q: Quat) -> Mat:

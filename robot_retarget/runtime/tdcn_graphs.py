@@ -25,16 +25,6 @@ import casadi as ca
 from robot_retarget.casadi_jit import compile_graph
 from robot_retarget.geometry import symbolic_quaternion as sq
 
-_ZERO_NORM = 1e-12  # as frame.unit_quaternions
-
-
-def unit_or_identity(q: sq.Quat) -> sq.Quat:
-    """``q / |q|``, or the identity where |q| ≤ 1e-12."""
-    n = ca.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    ok = n > _ZERO_NORM
-    d = ca.fmax(n, _ZERO_NORM)
-    return tuple(ca.if_else(ok, c / d, ca.SX(1.0 if i == 0 else 0.0)) for i, c in enumerate(q))
-
 
 def inputs_graph(parents: tuple[int, ...]) -> tuple[list[ca.SX], list[ca.SX]]:
     j = len(parents)
@@ -44,7 +34,7 @@ def inputs_graph(parents: tuple[int, ...]) -> tuple[list[ca.SX], list[ca.SX]]:
     size = 3 * j + 4 * j + 4
     mean = ca.SX.sym("mean", size)
     std = ca.SX.sym("std", size)
-    units = [unit_or_identity(sq.quat_at(q, n)) for n in range(j)]
+    units = [sq.unit_or_identity(sq.quat_at(q, n)) for n in range(j)]
     glob: list[sq.Mat] = []
     pos: list[sq.Vec] = []
     for n, p in enumerate(parents):
@@ -73,8 +63,8 @@ def outputs_graph(num_joints: int, residual: bool) -> tuple[list[ca.SX], list[ca
     heights = ca.SX.sym("heights", 2)  # source, target (m)
     out: list[ca.SX] = []
     for n in range(j):
-        dq = unit_or_identity(sq.quat_at(raw, n))
-        out.extend(unit_or_identity(sq.qmul(sq.quat_at(q, n), dq)) if residual else dq)
+        dq = sq.unit_or_identity(sq.quat_at(raw, n))
+        out.extend(sq.unit_or_identity(sq.qmul(sq.quat_at(q, n), dq)) if residual else dq)
     dv = [raw[4 * j + i] for i in range(4)]
     move = [(vel[i] / heights[0] + dv[i]) * heights[1] for i in range(3)]
     move.append(vel[3] + dv[3])
