@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from robot_retarget.cli.data_dir import add_data_argument
+from robot_retarget.pipeline.input_filter import one_euro_argument
 
 NAME = "eval-robot"
 HELP = "Score the whole pipeline on the robot against a position-IK baseline and the limit."
@@ -66,6 +67,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--one-euro",
+        type=one_euro_argument,
         default=None,
         metavar="MIN_HZ,BETA",
         help="with --corrupt: the loop smooths its input with this One-Euro filter, as "
@@ -103,6 +105,8 @@ def _overrides(items: list[str]) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.one_euro is not None and args.corrupt is None:
+        raise SystemExit("eval-robot: --one-euro smooths the live loop of --corrupt; add --corrupt")
     from robot_retarget.casadi_jit import default_cache_dir
     from robot_retarget.errors import RetargetError
     from robot_retarget.evaluation.robot.plots import segment_bars, stick_strip
@@ -173,19 +177,14 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
     from robot_retarget.errors import RetargetError
     from robot_retarget.evaluation.live_corruption import KINDS
     from robot_retarget.evaluation.robustness import markdown, robustness
-    from robot_retarget.pipeline.input_filter import OneEuroSettings
 
     kinds = KINDS if args.corrupt == "all" else tuple(k for k in args.corrupt.split(",") if k)
     unknown = [k for k in kinds if k not in KINDS]
     if unknown:
         raise RetargetError(f"--corrupt: unknown kind(s) {unknown}; choose from {', '.join(KINDS)}")
-    try:
-        smooth = None if args.one_euro is None else OneEuroSettings.parse(args.one_euro)
-    except ValueError as exc:
-        raise RetargetError(str(exc)) from None
     models = [model] if model == "copy-scaled" else [model, "copy-scaled"]
     rows = robustness(config, clips, models, kinds, max_frames=args.max_frames or 600,
-                      input_filter=smooth,
+                      input_filter=args.one_euro,
                       progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True))  # fmt: skip
     if args.json:
         print(json.dumps([r.__dict__ for r in rows], indent=2))

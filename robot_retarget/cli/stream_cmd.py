@@ -27,7 +27,7 @@ from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
-from robot_retarget.pipeline.input_filter import OneEuroSettings
+from robot_retarget.pipeline.input_filter import one_euro_argument
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -36,13 +36,6 @@ if TYPE_CHECKING:
 
 NAME = "stream"
 HELP = "Drive a robot (or the simulator) live from a replayed clip or a mocap stream."
-
-
-def _one_euro(text: str) -> OneEuroSettings:
-    try:
-        return OneEuroSettings.parse(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -63,7 +56,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, help="stop after S seconds")
     parser.add_argument(
         "--one-euro",
-        type=_one_euro,
+        type=one_euro_argument,
         metavar="MIN_HZ,BETA",
         help="smooth the input with a One-Euro filter (e.g. 2,0.3: 2 Hz cutoff when still, "
         "+0.3 Hz per rad/s): less servo chatter from a jittery pose estimator, some lag; off by "

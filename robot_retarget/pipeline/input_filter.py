@@ -16,6 +16,7 @@ frame passes through): the loop resets it wherever a sequence starts.
 
 from __future__ import annotations
 
+import argparse
 import math
 from dataclasses import dataclass
 
@@ -57,6 +58,14 @@ class OneEuroSettings:
             raise ValueError(
                 f"--one-euro takes MIN_HZ,BETA (e.g. 2,0.3), got {text!r}{detail}"
             ) from None
+
+
+def one_euro_argument(text: str) -> OneEuroSettings:
+    """argparse type of ``--one-euro MIN_HZ,BETA`` (``stream``, ``eval-robot --corrupt``)."""
+    try:
+        return OneEuroSettings.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _alpha(cutoff_hz: FloatArray | float, dt_s: float) -> FloatArray:

@@ -98,3 +98,16 @@ def test_the_loop_applies_it_and_restarts_it_with_each_sequence() -> None:
         stream = corrupt_stream(motion, "jitter", np.random.default_rng(1))
         jerk.append(score_live(step, motion, stream, input_filter=smooth).jerk_rad_s3)
     assert jerk[1] < 0.7 * jerk[0]
+
+
+def test_eval_robot_takes_it_only_with_corrupt(capsys: pytest.CaptureFixture[str]) -> None:
+    """``eval-robot --one-euro`` smooths the live loop of ``--corrupt``; without it (nothing
+    to smooth) or with a malformed value it is refused before any work."""
+    from robot_retarget.cli.main import main
+
+    with pytest.raises(SystemExit, match="add --corrupt"):
+        main(["eval-robot", "--one-euro", "2,0.3"])
+    with pytest.raises(SystemExit) as info:
+        main(["eval-robot", "--corrupt", "jitter", "--one-euro", "2"])
+    assert info.value.code == 2
+    assert "MIN_HZ,BETA" in capsys.readouterr().err
