@@ -74,6 +74,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "stream --one-euro does",
     )
     parser.add_argument(
+        "--raw-positions",
+        action="store_true",
+        help="with --corrupt: the live source solves position packets as sent, as stream "
+        "--raw-positions does (no frozen-joint or limb-swap cleanup)",
+    )
+    parser.add_argument(
         "--input",
         choices=("3d", "2d"),
         default="3d",
@@ -107,6 +113,10 @@ def _overrides(items: list[str]) -> dict[str, float]:
 def run(args: argparse.Namespace) -> int:
     if args.one_euro is not None and args.corrupt is None:
         raise SystemExit("eval-robot: --one-euro smooths the live loop of --corrupt; add --corrupt")
+    if args.raw_positions and args.corrupt is None:
+        raise SystemExit(
+            "eval-robot: --raw-positions is about the live source of --corrupt; add --corrupt"
+        )
     from robot_retarget.casadi_jit import default_cache_dir
     from robot_retarget.errors import RetargetError
     from robot_retarget.evaluation.robot.plots import segment_bars, stick_strip
@@ -184,7 +194,7 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
         raise RetargetError(f"--corrupt: unknown kind(s) {unknown}; choose from {', '.join(KINDS)}")
     models = [model] if model == "copy-scaled" else [model, "copy-scaled"]
     rows = robustness(config, clips, models, kinds, max_frames=args.max_frames or 600,
-                      input_filter=args.one_euro,
+                      input_filter=args.one_euro, clean_positions=not args.raw_positions,
                       progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True))  # fmt: skip
     if args.json:
         print(json.dumps([r.__dict__ for r in rows], indent=2))

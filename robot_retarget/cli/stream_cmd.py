@@ -62,6 +62,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "+0.3 Hz per rad/s): less servo chatter from a jittery pose estimator, some lag; off by "
         "default",
     )
+    parser.add_argument(
+        "--raw-positions",
+        action="store_true",
+        help="udp: solve position packets as sent; by default joints a tracker holds in place "
+        "are carried with their parents and swapped left/right limbs are swapped back",
+    )
     parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
     parser.add_argument("--loop", action="store_true", help="replay: start over at the end")
     parser.add_argument("--speed", type=float, default=1.0, help="replay speed factor")
@@ -155,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
         token=args.token,
         allow_remote=args.allow_remote,
         keypoint_model=args.keypoint_model,
+        clean_positions=not args.raw_positions,
     )
     model = load_runtime_model(args.model or default_model_name())
     step = RetargetStep(config, model, default_canonical_skeleton(), rate_hz=args.rate)

@@ -23,7 +23,13 @@ import numpy as np
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.motion.human_motion import HumanMotion, skeleton_height
-from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.canonical import (
+    ARM_CHAINS,
+    CANONICAL_JOINTS,
+    CANONICAL_PARENTS,
+    LEG_CHAINS,
+    Joint,
+)
 
 KINDS: tuple[str, ...] = (
     "jitter",
@@ -47,15 +53,6 @@ SWAP_FRAMES = (1, 10)
 BONE_SIGMA = 0.05
 _LATENCY_FRAMES = (2, 4)
 _LOW_RATE_HZ = 30.0
-# Left/right partners for swaps: (left joints, right joints) of an arm and of a leg.
-ARM = (
-    (Joint.LeftShoulder, Joint.LeftArm, Joint.LeftForeArm, Joint.LeftHand),
-    (Joint.RightShoulder, Joint.RightArm, Joint.RightForeArm, Joint.RightHand),
-)
-LEG = (
-    (Joint.LeftUpLeg, Joint.LeftLeg, Joint.LeftFoot, Joint.LeftToeBase),
-    (Joint.RightUpLeg, Joint.RightLeg, Joint.RightFoot, Joint.RightToeBase),
-)
 
 
 @dataclass(frozen=True)
@@ -109,7 +106,7 @@ def _freeze_joints(pos: FloatArray, rng: np.random.Generator, severity: float) -
 
 
 def _swap(pos: FloatArray, rng: np.random.Generator, severity: float) -> None:
-    for left, right in (ARM, LEG):
+    for left, right in (ARM_CHAINS, LEG_CHAINS):
         for start, stop in _intervals(rng, len(pos), SWAP_FRAMES, 0.03 * severity):
             a, b = list(left), list(right)
             pos[start:stop, a + b] = pos[start:stop, b + a]

@@ -1,8 +1,9 @@
 """Score a robot on live input: a (corrupted) sender through the real control loop.
 
 A :class:`~robot_retarget.evaluation.live_corruption.CorruptedStream` is delivered as a UDP
-positions sender would be — positions solved to rotations by the live source's own
-:class:`~robot_retarget.sources.from_positions.PositionsToRotations`, frames at their sender
+positions sender would be — tracker faults undone and positions solved to rotations as the live
+source does (:class:`~robot_retarget.sources.position_cleanup.PositionCleanup`,
+:class:`~robot_retarget.sources.from_positions.PositionsToRotations`), frames at their sender
 times, silence where frames are missing — into the :class:`ControlLoop` (interpolation,
 watchdog, ramp, optimizer, safety layer) on simulated time, in front of the kinematic
 simulator. The commands the loop sent are then scored against the CLEAN performer at the clip
@@ -28,6 +29,7 @@ from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.skeleton.trunk import trunk_frames_of_positions
 from robot_retarget.sources.base import MotionSource, SourceFrame, SourceStats
 from robot_retarget.sources.from_positions import PositionsToRotations
+from robot_retarget.sources.position_cleanup import PositionCleanup
 
 
 class _SimClock:
@@ -44,11 +46,19 @@ class _SimClock:
 class StreamSource(MotionSource):
     """Delivers a :class:`CorruptedStream` at its sender times, polled on the loop's clock."""
 
-    def __init__(self, stream: CorruptedStream, skeleton: Skeleton, fps: float) -> None:
+    def __init__(
+        self,
+        stream: CorruptedStream,
+        skeleton: Skeleton,
+        fps: float,
+        *,
+        clean_positions: bool = True,
+    ) -> None:
         self.stream = stream
         self._skeleton = skeleton
         self._fps = fps
         self._solver = PositionsToRotations(skeleton)
+        self._cleanup = PositionCleanup() if clean_positions else None
         self.stats = SourceStats()
         self._t0: float | None = None
         self._next = 0
@@ -67,6 +77,8 @@ class StreamSource(MotionSource):
 
     def start(self) -> None:
         self._t0, self._next = None, 0
+        if self._cleanup is not None:
+            self._cleanup.reset()
 
     def stop(self) -> None:
         pass
@@ -79,7 +91,10 @@ class StreamSource(MotionSource):
             t = float(self.stream.t_s[self._next])
             if self._t0 + t > now_s:
                 break
-            local, root = self._solver.solve(self.stream.positions[self._next])
+            positions = self.stream.positions[self._next]
+            if self._cleanup is not None:
+                positions = self._cleanup(positions)
+            local, root = self._solver.solve(positions)
             out.append(SourceFrame(local, root, t, self._next, self._t0 + t))
             self._next += 1
         self.stats.received += len(out)
@@ -105,14 +120,16 @@ def score_live(
     settle_s: float = 1.0,
     body: RobotBodyModel | None = None,
     input_filter: OneEuroSettings | None = None,
+    clean_positions: bool = True,
 ) -> LiveScore:
     """Run ``stream`` through the loop (clip rate ``clean.fps`` as the sender's nominal rate)
-    and score the commands against ``clean``."""
+    and score the commands against ``clean``; ``clean_positions=False``: the source solves
+    the positions as sent (no :class:`PositionCleanup`)."""
     config = step.config
     clock = _SimClock()
     # Join the motion at once: the ramp is the same for every kind and is not what is scored.
     settings = LoopSettings(ramp_speed_fraction=1.0, ramp_min_s=0.0, input_filter=input_filter)
-    source = StreamSource(stream, clean.skeleton, clean.fps)
+    source = StreamSource(stream, clean.skeleton, clean.fps, clean_positions=clean_positions)
     loop = ControlLoop(
         step, source, SimBackend(config, clock=clock.now), settings, record=True,
         clock=clock.now, sleep=clock.sleep,

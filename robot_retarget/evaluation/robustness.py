@@ -42,10 +42,12 @@ def robustness(
     max_frames: int | None = 600,
     seed: int = 0,
     input_filter: OneEuroSettings | None = None,
+    clean_positions: bool = True,
     progress: Callable[[str], None] | None = None,
 ) -> list[RobustnessRow]:
     """Mean over ``clips`` of each model under ``clean`` and each kind (same noise per clip);
-    ``input_filter``: the loop smooths its input (``stream --one-euro``)."""
+    ``input_filter``: the loop smooths its input (``stream --one-euro``);
+    ``clean_positions=False``: the source solves positions as sent (``--raw-positions``)."""
     body = RobotBodyModel(config)
     rows = []
     for model in models:
@@ -58,7 +60,14 @@ def robustness(
             for kind in scores:
                 rng = np.random.default_rng(seed + k)
                 stream = corrupt_stream(motion, kind, rng)
-                s = score_live(step, motion, stream, body=body, input_filter=input_filter)
+                s = score_live(
+                    step,
+                    motion,
+                    stream,
+                    body=body,
+                    input_filter=input_filter,
+                    clean_positions=clean_positions,
+                )
                 scores[kind].append((s.direction_deg, s.jerk_rad_s3))
         for kind, vals in scores.items():
             a = np.array(vals)

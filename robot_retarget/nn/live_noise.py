@@ -25,7 +25,7 @@ import torch
 from robot_retarget.evaluation import live_corruption as live
 from robot_retarget.nn.fk_torch import forward_kinematics
 from robot_retarget.nn.positions_to_rotations import positions_to_rotations
-from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.canonical import ARM_CHAINS, CANONICAL_PARENTS, LEG_CHAINS, Joint
 
 Tensor = torch.Tensor
 
@@ -103,7 +103,7 @@ def corrupt_live(
             start, stop = _interval(t, live.DROPOUT_FRAMES, fps, generator)
             pos[i, start:stop, j] = pos[i, max(start - 1, 0), j].clone()
     for i in torch.nonzero(chance(noise.p_swap)).flatten().tolist():
-        limbs = live.ARM if bool(torch.rand(1, generator=generator) < 0.5) else live.LEG
+        limbs = ARM_CHAINS if bool(torch.rand(1, generator=generator) < 0.5) else LEG_CHAINS
         start, stop = _interval(t, live.SWAP_FRAMES, fps, generator)
         left, right = list(limbs[0]), list(limbs[1])
         pos[i, start:stop, left + right] = pos[i, start:stop, right + left]

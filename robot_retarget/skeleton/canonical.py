@@ -88,6 +88,16 @@ MIRROR_PAIRS: tuple[tuple[str, str], ...] = tuple(
     (n, "Right" + n[4:]) for n in CANONICAL_JOINTS if n.startswith("Left")
 )
 
+# Each limb as a chain from the trunk outward, (left, right): what a pose estimator swaps.
+ARM_CHAINS: tuple[tuple[Joint, ...], tuple[Joint, ...]] = (
+    (Joint.LeftShoulder, Joint.LeftArm, Joint.LeftForeArm, Joint.LeftHand),
+    (Joint.RightShoulder, Joint.RightArm, Joint.RightForeArm, Joint.RightHand),
+)
+LEG_CHAINS: tuple[tuple[Joint, ...], tuple[Joint, ...]] = (
+    (Joint.LeftUpLeg, Joint.LeftLeg, Joint.LeftFoot, Joint.LeftToeBase),
+    (Joint.RightUpLeg, Joint.RightLeg, Joint.RightFoot, Joint.RightToeBase),
+)
+
 # End effectors as used by the seed papers' losses and the evaluations.
 END_EFFECTORS: tuple[str, ...] = ("LeftHand", "RightHand", "LeftToeBase", "RightToeBase", "Head")
 

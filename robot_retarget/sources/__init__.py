@@ -60,8 +60,11 @@ def open_source(
     allow_remote: bool = False,
     max_frames: int | None = None,
     keypoint_model: str | None = None,
+    clean_positions: bool = True,
 ) -> MotionSource:
-    """A (not yet started) source for ``spec``; raises SourceError for anything unusable."""
+    """A (not yet started) source for ``spec``; raises SourceError for anything unusable.
+    ``clean_positions=False``: a UDP source solves position packets as sent (no frozen-joint
+    or limb-swap cleanup, :mod:`robot_retarget.sources.position_cleanup`)."""
     if spec.startswith("replay:"):
         from robot_retarget.errors import MotionFormatError
         from robot_retarget.motion.human_motion import load_motion
@@ -76,7 +79,9 @@ def open_source(
         return ReplaySource(motion, loop=loop, speed=speed)
     if spec.startswith("udp://"):
         host, port = _host_port(spec, DEFAULT_PORT)
-        return UdpSource(host, port, token=token, allow_remote=allow_remote)
+        return UdpSource(
+            host, port, token=token, allow_remote=allow_remote, clean_positions=clean_positions
+        )
     if spec.startswith("tcp-bvh://"):
         from robot_retarget.sources.tcp_bvh import TcpBvhSource
 

@@ -4,7 +4,8 @@ Binding, tokens and the receiver thread: robot_retarget.sources.udp_datagram (th
 --allow-remote without --token unless --insecure-no-token is given). Sequence numbers and
 timestamps are checked by ``SequenceFilter`` (robot_retarget.sources.base; its docstring has
 the rule for a sender that restarts). Rotation packets must carry unit quaternions; position
-packets are turned into rotations here.
+packets are turned into rotations here, after :class:`PositionCleanup` has undone a tracker's
+frozen joints and swapped limbs (``clean_positions=False``: solved as sent).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources import wire
 from robot_retarget.sources.base import DEFAULT_QUEUE_FRAMES, SourceFrame
 from robot_retarget.sources.from_positions import PositionsToRotations
+from robot_retarget.sources.position_cleanup import PositionCleanup
 from robot_retarget.sources.udp_datagram import UdpDatagramSource
 
 DEFAULT_PORT = 9750
@@ -41,6 +43,7 @@ class UdpSource(UdpDatagramSource):
         nominal_fps: float = 60.0,
         max_queue: int = DEFAULT_QUEUE_FRAMES,
         clock: Callable[[], float] = time.monotonic,
+        clean_positions: bool = True,
     ) -> None:
         skeleton = skeleton or default_canonical_skeleton()
         super().__init__(
@@ -54,6 +57,13 @@ class UdpSource(UdpDatagramSource):
             clock=clock,
         )
         self._positions = PositionsToRotations(skeleton)
+        # Position packets: frozen joints and swapped limbs undone before the solve.
+        self._cleanup = PositionCleanup() if clean_positions else None
+
+    @property
+    def cleans_positions(self) -> bool:
+        """Whether position packets are cleaned of frozen joints and swapped limbs."""
+        return self._cleanup is not None
 
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
         """Decode and check one datagram; queue and return the frame, or count the drop."""
@@ -71,10 +81,19 @@ class UdpSource(UdpDatagramSource):
             if (np.abs(norms - 1.0) > _QUAT_NORM_TOL).any():
                 self.stats.drop("malformed")
                 return None
+            if not self._filter.accept(pkt.seq, pkt.t_s):
+                return None
             local = pkt.values / norms
             root = pkt.root if pkt.root is not None else np.zeros(3)
         else:
-            local, root = self._positions.solve(pkt.values)
-        if not self._filter.accept(pkt.seq, pkt.t_s):
-            return None
+            restarts = self._filter.restarts
+            if not self._filter.accept(pkt.seq, pkt.t_s):
+                return None
+            # The cleanup remembers the stream, so it sees accepted frames only, in order.
+            values = pkt.values
+            if self._cleanup is not None:
+                if self._filter.restarts != restarts:
+                    self._cleanup.reset()
+                values = self._cleanup(values)
+            local, root = self._positions.solve(values)
         return self._deliver(SourceFrame(local, root, pkt.t_s, pkt.seq, recv_s))

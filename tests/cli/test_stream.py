@@ -178,6 +178,26 @@ def test_a_smoothed_replay_stays_within_the_limits(tmp_path: Path) -> None:
         _args("--source", "udp://127.0.0.1:0", "--one-euro", "2")
 
 
+def test_raw_positions_reaches_the_udp_source(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--raw-positions``: the UDP source solves position packets as sent."""
+    import robot_retarget.sources as sources
+
+    seen: list[bool] = []
+
+    class OpenedError(Exception):
+        pass
+
+    def fake_open_source(spec: str, **kwargs: object) -> None:
+        seen.append(bool(kwargs["clean_positions"]))
+        raise OpenedError
+
+    monkeypatch.setattr(sources, "open_source", fake_open_source)
+    for flags, clean in (((), True), (("--raw-positions",), False)):
+        with pytest.raises(OpenedError):
+            stream_cmd.run(_args("--source", "udp://127.0.0.1:0", *flags))
+        assert seen[-1] is clean
+
+
 def test_bad_numbers_are_refused() -> None:
     from robot_retarget.errors import RetargetError
 

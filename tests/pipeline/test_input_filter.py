@@ -107,6 +107,8 @@ def test_eval_robot_takes_it_only_with_corrupt(capsys: pytest.CaptureFixture[str
 
     with pytest.raises(SystemExit, match="add --corrupt"):
         main(["eval-robot", "--one-euro", "2,0.3"])
+    with pytest.raises(SystemExit, match="--raw-positions is about the live source"):
+        main(["eval-robot", "--raw-positions"])
     with pytest.raises(SystemExit) as info:
         main(["eval-robot", "--corrupt", "jitter", "--one-euro", "2"])
     assert info.value.code == 2

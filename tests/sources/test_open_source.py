@@ -23,6 +23,8 @@ def test_udp_spec_defaults() -> None:
     assert isinstance(src, UdpSource)
     assert (src.host, src.port, src.token) == ("127.0.0.1", 9751, "t")
     assert isinstance(open_source("udp://"), UdpSource)
+    assert src.cleans_positions
+    assert not open_source("udp://127.0.0.1:0", clean_positions=False).cleans_positions
 
 
 def test_tcp_bvh_spec() -> None:
