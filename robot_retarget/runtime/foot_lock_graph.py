@@ -1,5 +1,6 @@
-"""The foot lock's frame step as one compiled SX graph (the twin of
-:meth:`robot_retarget.nn.models.foot_lock.FootLock.step`).
+"""The foot lock's frame step as one SX graph (the twin of
+:meth:`robot_retarget.nn.models.foot_lock.FootLock.step`), compiled as part of the residual
+model's output stage (:func:`robot_retarget.runtime.residual_graphs.output_lock_graph`).
 
 ``foot_lock(q_src, root_src, offsets_src, q_out, root_out, offsets_tgt, leg, rate, state,
 first) → (legs, state_next)``:
@@ -23,11 +24,8 @@ the two agree to rounding (tested).
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import casadi as ca
 
-from robot_retarget.casadi_jit import compile_graph
 from robot_retarget.evaluation.foot_contact import CONTACT_HEIGHT_LEGS, CONTACT_SPEED_LEGS_S
 from robot_retarget.geometry import symbolic_quaternion as sq
 from robot_retarget.skeleton import foot_lock_spec as spec
@@ -153,9 +151,3 @@ def foot_lock_graph() -> tuple[list[ca.SX], list[ca.SX]]:
         state_next.extend((*anchor, *src_ankle, lowest))
     inputs = [q_src, root_src, off_src, q_out, root_out, off_tgt, leg_len, rate, state, first]
     return inputs, [ca.vertcat(*legs), ca.vertcat(*state_next)]
-
-
-@lru_cache(maxsize=2)
-def foot_lock_function(*, jit: bool = True) -> ca.Function:
-    """The compiled graph (once per process, and once per machine: cached on disk)."""
-    return compile_graph("foot_lock", *foot_lock_graph(), jit=jit)

@@ -20,7 +20,7 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.evaluation.skeleton_measures import leg_length
 from robot_retarget.runtime.copy import rest_height_m
-from robot_retarget.runtime.foot_lock_graph import LEG_JOINTS, STATE_SIZE, foot_lock_function
+from robot_retarget.runtime.foot_lock_graph import STATE_SIZE
 from robot_retarget.runtime.frame import (
     NUM_JOINTS,
     F32Array,
@@ -28,7 +28,7 @@ from robot_retarget.runtime.frame import (
     check_frame,
     check_offsets,
 )
-from robot_retarget.runtime.residual_graphs import residual_stages
+from robot_retarget.runtime.residual_graphs import output_lock_function, residual_stages
 from robot_retarget.runtime.residual_weights import ResidualWeights
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 from robot_retarget.skeleton.foot_lock_spec import CONTACT_FPS
@@ -84,19 +84,20 @@ class FastResidualRetargeter:
         self._pose_x = pose_x
         self._u = np.zeros((_J, 3))
         self._yaw_cap = np.array([0.0, w.max_correction_rad])
-        self._output = CompiledFunction(
-            output,
-            args=[q_den, self._u.reshape(-1), self._yaw_cap[:1], self._yaw_cap[1:]],
-        )
+        output_args = [q_den, self._u.reshape(-1), self._yaw_cap[:1], self._yaw_cap[1:]]
+        # With the foot lock, the output stage and the lock are one compiled call.
+        self._lock = _FootLockInputs(src, tgt, frame_rate_hz) if w.foot_lock else None
+        if self._lock is None:
+            self._output = CompiledFunction(output, args=output_args)
+        else:
+            self._output = CompiledFunction(
+                output_lock_function(_J, jit=jit), args=output_args + self._lock.args
+            )
+            self._lock.bind(self._output.res[1])
         self._out = self._output.res[0].reshape(_J, 4)
         self._den_layers = _denoiser_layers(w, k)
         self._layers = _correction_layers(w, src, tgt, h_src, h_tgt)
         self._root_taps = w.root_taps
-        self._lock = (
-            _FootLockStep(self._output.res[0], src, tgt, frame_rate_hz, jit=jit)
-            if w.foot_lock
-            else None
-        )
         self.reset()
 
     def reset(self) -> None:
@@ -137,19 +138,19 @@ class FastResidualRetargeter:
         out_pos, self._yaw_cap[0] = self._stream.integrate(
             self._root_taps @ window * self._ratio, dyaw
         )
+        if self._lock is not None:
+            self._lock.write(q_in, root, out_pos)
         self._output()
         if self._lock is not None:
-            self._lock(q_in, root, out_pos, self._out)
+            self._lock.advance()
         return self._out.copy(), out_pos
 
 
-class _FootLockStep:
-    """The foot lock (:mod:`robot_retarget.runtime.foot_lock_graph`) bound to a step's
-    output array: it rewrites the legs' rotations in place."""
+class _FootLockInputs:
+    """The foot lock's inputs and state (:mod:`robot_retarget.runtime.foot_lock_graph`), bound
+    to the compiled output stage that applies it (``output_lock``)."""
 
-    def __init__(
-        self, q_out: FloatArray, src: FloatArray, tgt: FloatArray, rate_hz: float, *, jit: bool
-    ) -> None:
+    def __init__(self, src: FloatArray, tgt: FloatArray, rate_hz: float) -> None:
         if not rate_hz > 0.0:
             raise ValueError(f"frame_rate_hz must be positive, got {rate_hz}")
         leg = leg_length(Skeleton(CANONICAL_JOINTS, CANONICAL_PARENTS, src))
@@ -158,37 +159,36 @@ class _FootLockStep:
         self._root_out = np.zeros(3)
         self._state = np.zeros(STATE_SIZE)
         self._first = np.ones(1)
-        self._fn = CompiledFunction(
-            foot_lock_function(jit=jit),
-            args=[
-                self._q_src,
-                self._root_src,
-                np.ascontiguousarray(src.reshape(-1)),
-                q_out,
-                self._root_out,
-                np.ascontiguousarray(tgt.reshape(-1)),
-                np.array([leg]),
-                np.array([float(rate_hz)]),
-                self._state,
-                self._first,
-            ],
-        )
-        legs, self._state_next = self._fn.res
-        self._legs = legs.reshape(-1, 4)
+        # In output_lock's order: the lock's inputs without q_out (the output itself).
+        self.args = [
+            self._q_src,
+            self._root_src,
+            np.ascontiguousarray(src.reshape(-1)),
+            self._root_out,
+            np.ascontiguousarray(tgt.reshape(-1)),
+            np.array([leg]),
+            np.array([float(rate_hz)]),
+            self._state,
+            self._first,
+        ]
+        self._state_next = np.zeros(STATE_SIZE)
+
+    def bind(self, state_next: FloatArray) -> None:
+        self._state_next = state_next
 
     def reset(self) -> None:
         self._first[0] = 1.0
 
-    def __call__(
-        self, q_src: FloatArray, root_src: FloatArray, root_out: FloatArray, out: FloatArray
-    ) -> None:
+    def write(self, q_src: FloatArray, root_src: FloatArray, root_out: FloatArray) -> None:
+        """The performer's frame as it arrived and the output's root, before the call."""
         self._q_src[...] = q_src.reshape(-1)
         self._root_src[...] = root_src
         self._root_out[...] = root_out
-        self._fn()
+
+    def advance(self) -> None:
+        """After the call: the lock's state moves on one frame."""
         self._state[...] = self._state_next
         self._first[0] = 0.0
-        out[LEG_JOINTS, :] = self._legs
 
 
 def _denoiser_layers(w: ResidualWeights, history: int) -> list[F32Array]:

@@ -11,6 +11,9 @@
   first two rotation-matrix columns (6D), then a constant 1 (the first layer's bias column).
 - ``output(q_den, u, yaw, cap) → q``: ``q_den ⊗ exp(cap·tanh(u/cap))``, normalised, with the
   heading ``yaw`` put back on the root.
+- ``output_lock(q_den, u, yaw, cap, *lock inputs) → (q, lock state)``: the same output with the
+  foot lock (:mod:`robot_retarget.runtime.foot_lock_graph`) applied to its legs, in one call
+  (the lock's inputs but its ``q_out``, which is this output).
 
 Every array is row-major: (J, 4) quaternions, (J, K, 4) history, (J, 3) vectors. The graphs
 depend only on the joint tree and the history length, not on a performer or the weights
@@ -25,6 +28,7 @@ import casadi as ca
 
 from robot_retarget.casadi_jit import compile_graph
 from robot_retarget.geometry import symbolic_quaternion as sq
+from robot_retarget.runtime.foot_lock_graph import LEG_JOINTS, foot_lock_graph
 
 REL_SCALE = 10.0  # as robot_retarget.nn.models.residual
 
@@ -98,6 +102,24 @@ def output_graph(num_joints: int) -> tuple[list[ca.SX], list[ca.SX]]:
         qb = sq.normalize(sq.qmul(sq.quat_at(q_den, n), delta))
         out.extend(sq.with_heading(qb, yaw) if n == 0 else qb)
     return [q_den, u, yaw, cap], [ca.vertcat(*out)]
+
+
+def output_lock_graph(num_joints: int) -> tuple[list[ca.SX], list[ca.SX]]:
+    out_inputs, (out,) = output_graph(num_joints)
+    lock_inputs, (legs, state_next) = foot_lock_graph()
+    q_out = lock_inputs[3]
+    legs, state_next = ca.substitute([legs, state_next], [q_out], [out])
+    rows = [out[i] for i in range(4 * num_joints)]
+    for k, joint in enumerate(LEG_JOINTS):
+        rows[4 * joint : 4 * joint + 4] = [legs[4 * k + c] for c in range(4)]
+    inputs = out_inputs + [x for x in lock_inputs if x is not q_out]
+    return inputs, [ca.vertcat(*rows), state_next]
+
+
+@lru_cache(maxsize=4)
+def output_lock_function(num_joints: int, *, jit: bool = True) -> ca.Function:
+    """The output stage with the foot lock, compiled once per process (and machine)."""
+    return compile_graph("residual_output_lock", *output_lock_graph(num_joints), jit=jit)
 
 
 @lru_cache(maxsize=4)
