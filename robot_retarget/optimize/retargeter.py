@@ -33,6 +33,7 @@ from robot_retarget.optimize.formulation import FOOT_ROWS, TWIST_ROWS, RobotProb
 from robot_retarget.optimize.limb_branches import LimbBranches
 from robot_retarget.optimize.limits import project_sequence, velocity_box
 from robot_retarget.optimize.objective import ParameterWriter, retarget_objective
+from robot_retarget.optimize.online_check import OnlineCheck
 from robot_retarget.optimize.result import SolveResult, SolveStatus
 from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver
@@ -98,6 +99,10 @@ class Retargeter:
         # poses ≤ 1.7e-4 rad apart on the demo, a tenth of a servo tick.
         self._online = self._build(1, "daqp", jit, hessian="exact", tol_du=ONLINE_TOL_DU)
         self._online_params = self._init_static(self._online, 1)
+        # Compiled where the solver is (no compiler named by the caller: interpreted as it).
+        self._online_check = OnlineCheck(
+            self._online, jit=self._online.jit_used, cache_dir=self._cache_dir
+        )
         self._branches = self._build_branches(jit)
         self._offline: BufferedSolver | None = None  # built on first solve_clip
         self._offline_params: ParameterWriter | None = None
@@ -260,14 +265,13 @@ class Retargeter:
         s.ubx[:] = hi
         np.minimum(np.maximum(s.x0, lo, out=s.x0), hi, out=s.x0)  # np.clip's wrapper is slower
         self._online_params.write_history(self._q_prev, self._q_prev2, dt)
-        return self._solve_online(lo, hi)
+        return self._solve_online()
 
     def solve_written(self) -> SolveResult:
         """One frame whose parameters, box (``lbx``/``ubx``) and start point a caller has
         already written into :attr:`online_solver`'s arrays (the live path's compiled frame
         program, :mod:`.live_frame`); solved, projected and checked as :meth:`solve` does."""
-        s = self._online
-        return self._solve_online(s.lbx, s.ubx)
+        return self._solve_online()
 
     def set_previous_command(self, q_prev: npt.ArrayLike) -> None:
         """Centre the next online solve's velocity box on ``q_prev`` (e.g. a measured pose)."""
@@ -288,19 +292,20 @@ class Retargeter:
         (what :meth:`solve` does first)."""
         self._write_frame(self._online, self._online_params, 0, targets)
 
-    def _solve_online(self, lo: FloatArray, hi: FloatArray) -> SolveResult:
-        """Solve the written online problem; the result projected onto [lo, hi], checked and
-        committed as the new history."""
+    def _solve_online(self) -> SolveResult:
+        """Solve the written online problem (its box in the solver's ``lbx``/``ubx``); the
+        result projected onto that box, checked and committed as the new history."""
         s = self._online
+        lo, hi = s.lbx, s.ubx
         t0 = time.perf_counter()
         converged, iters, status_text = s.call()
         elapsed = time.perf_counter() - t0
-        x = s.x
-        finite = bool(np.isfinite(x).all())
-        violation = self._constraint_violation(s) if finite else math.inf
-        if finite and violation <= _CONSTRAINT_TOL:
+        finite, violation = self._online_check()
+        if not finite:
+            violation = math.inf
+        if violation <= _CONSTRAINT_TOL:
             status = SolveStatus.OPTIMAL if converged else SolveStatus.MAX_ITER
-            q = np.minimum(np.maximum(x, lo), hi)
+            q = self._online_check.q.copy()
             cost = float(s.f[0])
             s.lam_x0[:] = s.lam_x
             s.lam_g0[:] = s.lam_g
@@ -308,7 +313,8 @@ class Retargeter:
             status = SolveStatus.FALLBACK
             # Best feasible point: the iterate if it is a number, else the previous command,
             # projected onto the merged box.
-            q = np.minimum(np.maximum(x if finite else self._q_prev, lo), hi)
+            x = s.x if bool(np.isfinite(s.x).all()) else self._q_prev
+            q = np.minimum(np.maximum(x, lo), hi)
             cost = self._cost_at(s, q)
             s.lam_x0[:] = 0.0
             s.lam_g0[:] = 0.0
