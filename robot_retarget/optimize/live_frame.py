@@ -72,7 +72,10 @@ class LiveFrameSolver:
             retargeter.upper,
             retargeter.max_velocity,
         )
-        self._program = CompiledFunction(fn, res=[s.p, s.lbx, s.ubx, s.x0, None, None])
+        # The start point is the solver's only array the numpy path reads before writing it
+        # (Retargeter.online_start): it is copied in only for a frame the program takes.
+        self._program = CompiledFunction(fn, res=[s.p, s.lbx, s.ubx, None, None, None])
+        self._start = self._program.res[3]
         q_in, self._prev, self._prev2, self._dt, self._x0 = self._program.args
         self._q_in = q_in.reshape(len(CANONICAL_JOINTS), 4)
         self._trunk = self._program.res[4].reshape(3, 3)
@@ -96,10 +99,13 @@ class LiveFrameSolver:
         self._prev[:] = prev
         self._prev2[:] = prev2
         self._dt[0] = dt
-        self._x0[:] = s.x0
+        self._x0[:] = r.online_start()  # in numpy, as solve(): the same start to the bit
         s.lbg[:] = self._lbg
         self._program()
-        return guard_ok(self._guard)
+        if not guard_ok(self._guard):
+            return False
+        s.x0[:] = self._start
+        return True
 
     def trunk_frame(self) -> FloatArray:
         """The written frame's trunk frame (3, 3) (columns forward, left, up; canonical)."""

@@ -263,6 +263,7 @@ class Retargeter:
         lo, hi = velocity_box(self._q_prev, self.lower, self.upper, self.max_velocity * dt)
         s.lbx[:] = lo
         s.ubx[:] = hi
+        s.x0[:] = self.online_start()
         np.minimum(np.maximum(s.x0, lo, out=s.x0), hi, out=s.x0)  # np.clip's wrapper is slower
         self._online_params.write_history(self._q_prev, self._q_prev2, dt)
         return self._solve_online()
@@ -272,6 +273,13 @@ class Retargeter:
         already written into :attr:`online_solver`'s arrays (the live path's compiled frame
         program, :mod:`.live_frame`); solved, projected and checked as :meth:`solve` does."""
         return self._solve_online()
+
+    def online_start(self) -> FloatArray:
+        """Where the next online solve starts, before it is clipped to the frame's box: the
+        last solution moved on by ``warm_start_step`` × the last step (a new array)."""
+        step = self.settings.warm_start_step
+        x0 = self._online.x0
+        return x0 + step * (self._q_prev - self._q_prev2) if step else x0.copy()
 
     def set_previous_command(self, q_prev: npt.ArrayLike) -> None:
         """Centre the next online solve's velocity box on ``q_prev`` (e.g. a measured pose)."""
