@@ -93,7 +93,7 @@ class StreamSource(MotionSource):
                 break
             positions = self.stream.positions[self._next]
             if self._cleanup is not None:
-                positions = self._cleanup(positions)
+                positions = self._cleanup(positions, t)
             local, root = self._solver.solve(positions)
             out.append(SourceFrame(local, root, t, self._next, self._t0 + t))
             self._next += 1

@@ -5,7 +5,8 @@ into targets (:class:`.targets.FrameTargetBuilder`), the cost terms write them i
 solver's parameters, the history and the velocity box follow, then the solve: about forty numpy
 calls of a few microseconds each around one compiled SQP. Here everything before the solve is
 one SX function whose results are bound to the online solver's own arrays (``p``, ``lbx``,
-``ubx``, ``x0``, ``lbg``), so a frame costs one casadi call, then
+``ubx``; the start point ``x0`` is copied in only for a frame the program takes, since the numpy
+path moves on from it), so a frame costs one casadi call, then
 :meth:`.retargeter.Retargeter.solve_written`.
 
 The terms' frame writers are affine in the targets (copies, fixed weights, the keypoint term's
@@ -87,7 +88,8 @@ class LiveFrameSolver:
     ) -> bool:
         """Targets of canonical local rotations (22, 4) written into the online problem for a
         step of ``dt_s``; ``q_prev`` overrides the last command. False: a degenerate frame
-        (the caller takes the numpy path, which overwrites everything written here)."""
+        (the caller takes the numpy path, which overwrites everything written here and finds
+        the start point as it was)."""
         q = check_array("local rotations", local_quats, (len(CANONICAL_JOINTS), 4))
         dt = check_dt(dt_s)
         r = self.retargeter

@@ -5,8 +5,8 @@ things of the iterate ``x``: is it (and the constraint values ``g``) finite, how
 violate ``lbg ≤ g ≤ ubg``, and where does it land once projected onto the frame's box
 ``[lbx, ubx]``. In numpy that is five calls of a few microseconds each on arrays of twenty
 numbers; here it is one SX function bound to the solver's own arrays. (The projected command is
-still checked against its box in numpy afterwards, independently of this function: a servo is
-on the other side.)
+still checked against its box in numpy afterwards: a servo is on the other side. The projection
+keeps a NaN a NaN, so that check would see one even if the finiteness flag missed it.)
 """
 
 from __future__ import annotations
@@ -27,7 +27,8 @@ def _check_graph(nx: int, ng: int) -> tuple[list[ca.SX], list[ca.SX]]:
     # |v| < inf is false for ±inf and for NaN (every comparison with NaN is).
     nonfinite = ca.sum1(ca.if_else(ca.fabs(ca.vertcat(x, g)) < ca.inf, 0.0, 1.0))
     violation = ca.mmax(ca.vertcat(lbg - g, g - ubg, ca.SX(0.0)))
-    q = ca.fmin(ca.fmax(x, lbx), ubx)
+    # Not fmin/fmax, which drop a NaN: a NaN iterate stays NaN, for the numpy check after.
+    q = ca.if_else(x < lbx, lbx, ca.if_else(x > ubx, ubx, x))
     return [x, g, lbg, ubg, lbx, ubx], [q, nonfinite, violation]
 
 

@@ -7,9 +7,11 @@ bone toward a point in the room: a wrist held for half a second while the perfor
 the forearm backwards. A measured joint that moves never repeats its position to the last bit, so
 a joint whose position is bitwise the previous packet's while another joint of the frame moved is
 taken as frozen, and placed at its parent (itself placed first, root outward) plus the bone
-vector it had when last seen moving. A joint that is really still (a trunk at rest while the arms
-move) keeps the bone it has, so it stays where it is (to rounding). A frame repeated whole is
-left as it is, and the root is never filled (its world position is the one the rest hangs on).
+vector it had when last seen moving. A joint that is really still keeps the bone it has: it stays
+where it is (to rounding) if its parent does (a trunk at rest while the arms move), and moves
+with its parent if the parent moved (a sender that quantises or holds still joints has them
+carried along). A frame repeated whole gets the previous frame's answer, and the root is never
+filled (its world position is the one the rest hangs on).
 
 Stateful per stream: :meth:`FrozenJointFill.reset` at a sender restart.
 """
@@ -69,8 +71,8 @@ class FrozenJointFill:
             self._held.clear()
             self._placed = p.copy()
             return p
-        if all(same):  # the same frame again: nothing to tell apart
-            return p
+        if all(same):  # the same frame again: the same answer (frozen joints stay filled)
+            return placed.copy()
         held = {}
         for j in range(1, n):
             if same[j]:

@@ -18,17 +18,25 @@ from robot_retarget.sources.limb_swaps import LimbSwapFix
 
 
 class PositionCleanup:
-    """``cleanup(positions (22, 3))`` → the canonical joints with tracker faults undone."""
+    """``cleanup(positions (22, 3), t_s)`` → the canonical joints with tracker faults undone;
+    ``t_s`` is the sender's timestamp. Frames must come in the order they are accepted; one
+    whose timestamp goes back starts a new stream (a sender restart)."""
 
     def __init__(self) -> None:
         self.frozen = FrozenJointFill(CANONICAL_PARENTS)
         self.swaps = LimbSwapFix((ARM_CHAINS, LEG_CHAINS))
+        self._last_t: float | None = None
 
     def reset(self) -> None:
-        """A new stream (a sender restart): nothing carried over from the last one."""
+        """A new stream: nothing carried over from the last one."""
         self.frozen.reset()
         self.swaps.reset()
+        self._last_t = None
 
-    def __call__(self, positions: npt.ArrayLike) -> FloatArray:
+    def __call__(self, positions: npt.ArrayLike, t_s: float) -> FloatArray:
+        t = float(t_s)
+        if self._last_t is not None and not t > self._last_t:
+            self.reset()
+        self._last_t = t
         # Frozen joints first: they are told by a bitwise repeat of the labels as sent.
-        return self.swaps(self.frozen(positions))
+        return self.swaps(self.frozen(positions), t)

@@ -86,14 +86,12 @@ class UdpSource(UdpDatagramSource):
             local = pkt.values / norms
             root = pkt.root if pkt.root is not None else np.zeros(3)
         else:
-            restarts = self._filter.restarts
             if not self._filter.accept(pkt.seq, pkt.t_s):
                 return None
-            # The cleanup remembers the stream, so it sees accepted frames only, in order.
+            # The cleanup remembers the stream, so it sees accepted frames only, in order (a
+            # restart shows as a timestamp that went back, and starts it over).
             values = pkt.values
             if self._cleanup is not None:
-                if self._filter.restarts != restarts:
-                    self._cleanup.reset()
-                values = self._cleanup(values)
+                values = self._cleanup(values, pkt.t_s)
             local, root = self._positions.solve(values)
         return self._deliver(SourceFrame(local, root, pkt.t_s, pkt.seq, recv_s))

@@ -15,7 +15,7 @@ from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.skeleton.canonical import ARM_CHAINS, CANONICAL_PARENTS, LEG_CHAINS, Joint
 from robot_retarget.sources import wire
 from robot_retarget.sources.frozen_joints import FrozenJointFill
-from robot_retarget.sources.limb_swaps import MAX_SWAPPED_FRAMES, LimbSwapFix
+from robot_retarget.sources.limb_swaps import MAX_GAP_S, LimbSwapFix
 from robot_retarget.sources.position_cleanup import PositionCleanup
 from robot_retarget.sources.udp import UdpSource
 
@@ -28,8 +28,14 @@ def walk() -> FloatArray:
     return demo_motion(fps=30.0).frames(0, 181).positions()
 
 
+_FPS = 30.0
+
+
 def _run(rule: FrozenJointFill | LimbSwapFix | PositionCleanup, frames: FloatArray) -> FloatArray:
-    return np.stack([rule(p) for p in frames])
+    """The rule over frames sent at 30 fps."""
+    if isinstance(rule, FrozenJointFill):
+        return np.stack([rule(p) for p in frames])
+    return np.stack([rule(p, k / _FPS) for k, p in enumerate(frames)])
 
 
 def _swap_arms(p: FloatArray) -> FloatArray:
@@ -92,6 +98,19 @@ def test_the_root_and_whole_repeats_are_never_filled(walk: FloatArray) -> None:
     assert not fill.frozen.any()
 
 
+def test_a_repeated_frame_gets_the_same_answer(walk: FloatArray) -> None:
+    # A sender repeating frames (a 30 fps estimator sent at 60 fps) during a dropout: the
+    # repeat keeps the filled joint where the frame before put it.
+    truth = walk[0][None] + np.arange(12)[:, None, None] * np.array([0.04, 0.0, 0.0])
+    sent = truth.copy()
+    sent[4:, Joint.LeftHand] = sent[3, Joint.LeftHand]
+    sent = np.concatenate([sent[:6], sent[5:6], sent[6:]])  # frame 5 twice
+    out = _run(FrozenJointFill(CANONICAL_PARENTS), sent)
+    np.testing.assert_array_equal(out[6], out[5])
+    np.testing.assert_allclose(out[:6], truth[:6], atol=1e-12)
+    np.testing.assert_allclose(out[7:], truth[6:], atol=1e-12)
+
+
 def test_reset_forgets_the_last_frame(walk: FloatArray) -> None:
     fill = FrozenJointFill(CANONICAL_PARENTS)
     fill(walk[0])
@@ -122,8 +141,9 @@ def test_unswapped_streams_pass_unchanged_even_when_jittery(walk: FloatArray) ->
 
 
 @settings(max_examples=30, deadline=None)
-@given(start=st.integers(1, 160), length=st.integers(1, MAX_SWAPPED_FRAMES))
+@given(start=st.integers(1, 160), length=st.integers(1, 14))
 def test_a_short_swap_is_swapped_back(walk: FloatArray, start: int, length: int) -> None:
+    # Up to 14 frames at 30 fps: shorter than the 0.5 s a run is corrected for.
     sent = walk.copy()
     stop = min(start + length, len(walk))
     sent[start:stop] = np.stack([_swap_arms(p) for p in walk[start:stop]])
@@ -131,15 +151,44 @@ def test_a_short_swap_is_swapped_back(walk: FloatArray, start: int, length: int)
     np.testing.assert_array_equal(_run(fix, sent), walk)
 
 
-def test_a_long_swap_is_believed_after_max_frames(walk: FloatArray) -> None:
-    # A stream that starts swapped is taken as sent; when it turns right the rule swaps it
-    # back to the first labels, but for at most max_frames frames.
+def test_a_stream_that_starts_swapped_is_followed_at_most_max_swap_s(walk: FloatArray) -> None:
+    # Taken as sent at first; when its labels turn right the rule swaps them back to the
+    # first ones, but for max_swap_s only (here 5.5 frames: 6 frames).
     sent = np.stack([_swap_arms(p) for p in walk[:60]] + list(walk[60:]))
-    fix = LimbSwapFix((ARM_CHAINS, LEG_CHAINS), max_frames=5)
+    fix = LimbSwapFix((ARM_CHAINS, LEG_CHAINS), max_swap_s=5.5 / _FPS)
     out = _run(fix, sent)
     differs = np.flatnonzero((out != sent).any(axis=(1, 2)))
-    np.testing.assert_array_equal(differs, np.arange(60, 65))
-    np.testing.assert_array_equal(out[65:], walk[65:])
+    np.testing.assert_array_equal(differs, np.arange(60, 66))
+    np.testing.assert_array_equal(out[66:], walk[66:])
+
+
+def test_a_long_swap_is_corrected_then_believed_and_its_end_passes(walk: FloatArray) -> None:
+    # Ten swapped frames against a 6-frame limit: 6 corrected, 4 pass as sent, and the
+    # sender's return to the right labels is not taken for a swap.
+    sent = walk.copy()
+    sent[60:70] = np.stack([_swap_arms(p) for p in walk[60:70]])
+    out = _run(LimbSwapFix((ARM_CHAINS, LEG_CHAINS), max_swap_s=5.5 / _FPS), sent)
+    np.testing.assert_array_equal(out[:66], walk[:66])
+    np.testing.assert_array_equal(out[66:70], sent[66:70])
+    np.testing.assert_array_equal(out[70:], walk[70:])
+
+
+def test_after_a_silence_the_labels_are_taken_as_sent(walk: FloatArray) -> None:
+    # The performer turns round while the sender is silent: the mirrored-looking frame after
+    # the silence is not a swap.
+    turned = walk[40:80] * np.array([-1.0, 1.0, -1.0])  # half a turn about the vertical
+    fix = LimbSwapFix((ARM_CHAINS, LEG_CHAINS))
+    for k, p in enumerate(walk[:40]):
+        fix(p, k / _FPS)
+    resume = 39 / _FPS + MAX_GAP_S + 0.01
+    out = np.stack([fix(p, resume + k / _FPS) for k, p in enumerate(turned)])
+    np.testing.assert_array_equal(out, turned)
+    # Without the silence the same frames would have been swapped back.
+    fix = LimbSwapFix((ARM_CHAINS, LEG_CHAINS))
+    for k, p in enumerate(walk[:40]):
+        fix(p, k / _FPS)
+    fix(turned[0], 40 / _FPS)
+    assert any(fix.swapped)
 
 
 def test_limb_swap_fix_refuses_bad_pairs() -> None:
@@ -147,8 +196,8 @@ def test_limb_swap_fix_refuses_bad_pairs() -> None:
         LimbSwapFix((((1, 2), (2, 3)),))
     with pytest.raises(ValueError, match="disjoint chains of equal length"):
         LimbSwapFix((((1, 2), (3,)),))
-    with pytest.raises(ValueError, match="max_frames"):
-        LimbSwapFix((ARM_CHAINS,), max_frames=-1)
+    with pytest.raises(ValueError, match="max_swap_s and max_gap_s"):
+        LimbSwapFix((ARM_CHAINS,), max_swap_s=-1.0)
 
 
 # --------------------------------------------------------------------------- both, live
@@ -159,7 +208,8 @@ def test_cleanup_undoes_the_modelled_dropouts_and_swaps() -> None:
         stream = corrupt_stream(clip, kind, np.random.default_rng(seed))
         frames = np.rint(stream.t_s * clip.fps).astype(int)
         raw_error = np.linalg.norm(stream.positions - truth[frames], axis=-1).mean()
-        out = _run(PositionCleanup(), stream.positions)
+        cleanup = PositionCleanup()
+        out = np.stack([cleanup(p, t) for p, t in zip(stream.positions, stream.t_s, strict=True)])
         error = np.linalg.norm(out - truth[frames], axis=-1).mean()
         if kind == "swap":
             np.testing.assert_array_equal(out, truth[frames])
