@@ -118,8 +118,10 @@ def decode_binary(data: bytes) -> WirePacket:
         token = data[_HEADER.size : start].decode("utf-8")
     except UnicodeDecodeError:
         raise WireError("token is not UTF-8") from None
-    # float32 → float64 is exact and never raises a floating-point warning, NaN included.
-    values = np.frombuffer(data, dtype="<f4", count=count, offset=start).astype(np.float64)
+    # float32 → float64 is exact; a signalling NaN in the packet makes numpy warn "invalid value
+    # in cast" (once per process, from the receiver thread): silenced, as _finite rejects it.
+    with np.errstate(invalid="ignore"):
+        values = np.frombuffer(data, dtype="<f4", count=count, offset=start).astype(np.float64)
     if not math.isfinite(t_s):
         raise WireError("timestamp is not finite", reason="nan")
     return _packet(kind, int(seq), float(t_s), _finite(values), token)

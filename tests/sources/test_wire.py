@@ -111,3 +111,17 @@ def test_corrupted_binary_packets_are_rejected_or_valid(patch: bytes, at: int) -
     except wire.WireError:
         return
     assert np.all(np.isfinite(pkt.values))
+
+
+def test_a_signalling_nan_is_rejected_without_a_warning() -> None:
+    """numpy warns when it casts a signalling NaN; the receiver thread's decode must not (the
+    packet is rejected as NaN all the same)."""
+    import warnings
+
+    packet = bytearray(wire.encode_binary(wire.KIND_POSITIONS, 1, 0.0, np.zeros((22, 3))))
+    packet[-4:] = struct.pack("<I", 0x7F800001)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(wire.WireError) as info:
+            wire.decode(bytes(packet))
+    assert info.value.reason == "nan"
