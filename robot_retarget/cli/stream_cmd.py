@@ -141,6 +141,11 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise RetargetError(f"--{name} must be positive, got {value}")
+    if args.raw_positions and not args.source.startswith("udp://"):
+        raise RetargetError(
+            f"--raw-positions is about the position packets of a udp:// source, not "
+            f"{args.source!r}; leave it out"
+        )
     _check_remote(args)
     if args.view:
         from robot_retarget.viewer.dependency import require_viser

@@ -196,6 +196,11 @@ def test_raw_positions_reaches_the_udp_source(monkeypatch: pytest.MonkeyPatch) -
         with pytest.raises(OpenedError):
             stream_cmd.run(_args("--source", "udp://127.0.0.1:0", *flags))
         assert seen[-1] is clean
+    from robot_retarget.errors import RetargetError
+
+    with pytest.raises(RetargetError, match="--raw-positions is about the position packets"):
+        stream_cmd.run(_args("--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}", "--raw-positions"))
+    assert len(seen) == 2  # refused before the source was opened
 
 
 def test_bad_numbers_are_refused() -> None:
