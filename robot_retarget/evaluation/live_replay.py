@@ -1,9 +1,8 @@
 """Score a robot on live input: a (corrupted) sender through the real control loop.
 
 A :class:`~robot_retarget.evaluation.live_corruption.CorruptedStream` is delivered as a UDP
-positions sender would be — tracker faults undone and positions solved to rotations as the live
-source does (:class:`~robot_retarget.sources.position_cleanup.PositionCleanup`,
-:class:`~robot_retarget.sources.from_positions.PositionsToRotations`), frames at their sender
+positions sender would be — tracker faults undone and positions solved to rotations by the live
+source's own :class:`~robot_retarget.sources.position_cleanup.LivePositions`, frames at their sender
 times, silence where frames are missing — into the :class:`ControlLoop` (interpolation,
 watchdog, ramp, optimizer, safety layer) on simulated time, in front of the kinematic
 simulator. The commands the loop sent are then scored against the CLEAN performer at the clip
@@ -28,8 +27,7 @@ from robot_retarget.sim.backend import SimBackend
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.skeleton.trunk import trunk_frames_of_positions
 from robot_retarget.sources.base import MotionSource, SourceFrame, SourceStats
-from robot_retarget.sources.from_positions import PositionsToRotations
-from robot_retarget.sources.position_cleanup import PositionCleanup
+from robot_retarget.sources.position_cleanup import LivePositions
 
 
 class _SimClock:
@@ -57,8 +55,7 @@ class StreamSource(MotionSource):
         self.stream = stream
         self._skeleton = skeleton
         self._fps = fps
-        self._solver = PositionsToRotations(skeleton)
-        self._cleanup = PositionCleanup() if clean_positions else None
+        self._positions = LivePositions(skeleton, clean=clean_positions)
         self.stats = SourceStats()
         self._t0: float | None = None
         self._next = 0
@@ -77,8 +74,7 @@ class StreamSource(MotionSource):
 
     def start(self) -> None:
         self._t0, self._next = None, 0
-        if self._cleanup is not None:
-            self._cleanup.reset()
+        self._positions.reset()
 
     def stop(self) -> None:
         pass
@@ -91,10 +87,7 @@ class StreamSource(MotionSource):
             t = float(self.stream.t_s[self._next])
             if self._t0 + t > now_s:
                 break
-            positions = self.stream.positions[self._next]
-            if self._cleanup is not None:
-                positions = self._cleanup(positions, t)
-            local, root = self._solver.solve(positions)
+            local, root = self._positions(self.stream.positions[self._next], t)
             out.append(SourceFrame(local, root, t, self._next, self._t0 + t))
             self._next += 1
         self.stats.received += len(out)
@@ -124,7 +117,7 @@ def score_live(
 ) -> LiveScore:
     """Run ``stream`` through the loop (clip rate ``clean.fps`` as the sender's nominal rate)
     and score the commands against ``clean``; ``clean_positions=False``: the source solves
-    the positions as sent (no :class:`PositionCleanup`)."""
+    the positions as sent (no cleanup of frozen joints and swapped limbs)."""
     config = step.config
     clock = _SimClock()
     # Join the motion at once: the ramp is the same for every kind and is not what is scored.

@@ -93,7 +93,6 @@ class FastResidualRetargeter:
             self._output = CompiledFunction(
                 output_lock_function(_J, jit=jit), args=output_args + self._lock.args
             )
-            self._lock.bind(self._output.res[1])
         self._out = self._output.res[0].reshape(_J, 4)
         self._den_layers = _denoiser_layers(w, k)
         self._layers = _correction_layers(w, src, tgt, h_src, h_tgt)
@@ -142,7 +141,7 @@ class FastResidualRetargeter:
             self._lock.write(q_in, root, out_pos)
         self._output()
         if self._lock is not None:
-            self._lock.advance()
+            self._lock.advance(self._output.res[1])
         return self._out.copy(), out_pos
 
 
@@ -171,10 +170,6 @@ class _FootLockInputs:
             self._state,
             self._first,
         ]
-        self._state_next = np.zeros(STATE_SIZE)
-
-    def bind(self, state_next: FloatArray) -> None:
-        self._state_next = state_next
 
     def reset(self) -> None:
         self._first[0] = 1.0
@@ -185,9 +180,9 @@ class _FootLockInputs:
         self._root_src[...] = root_src
         self._root_out[...] = root_out
 
-    def advance(self) -> None:
-        """After the call: the lock's state moves on one frame."""
-        self._state[...] = self._state_next
+    def advance(self, state_next: FloatArray) -> None:
+        """After the call: the lock's state moves on to the one the call returned."""
+        self._state[...] = state_next
         self._first[0] = 0.0
 
 

@@ -13,6 +13,8 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.skeleton.canonical import ARM_CHAINS, CANONICAL_PARENTS, LEG_CHAINS
+from robot_retarget.skeleton.skeleton import Skeleton
+from robot_retarget.sources.from_positions import PositionsToRotations
 from robot_retarget.sources.frozen_joints import FrozenJointFill
 from robot_retarget.sources.limb_swaps import LimbSwapFix
 
@@ -40,3 +42,29 @@ class PositionCleanup:
         self._last_t = t
         # Frozen joints first: they are told by a bitwise repeat of the labels as sent.
         return self.swaps(self.frozen(positions), t)
+
+
+class LivePositions:
+    """One live stream's position frames → (local rotations (22, 4), root (3,)) on
+    ``skeleton``: the cleanup above (unless ``clean`` is False), then the solve. What the UDP
+    source does with a position packet, and what the live replay does with a sender's frame."""
+
+    def __init__(self, skeleton: Skeleton, *, clean: bool = True) -> None:
+        self._solver = PositionsToRotations(skeleton)
+        self._cleanup = PositionCleanup() if clean else None
+
+    @property
+    def cleans(self) -> bool:
+        """Whether frames are cleaned of frozen joints and swapped limbs before the solve."""
+        return self._cleanup is not None
+
+    def reset(self) -> None:
+        """A new stream (the cleanup also starts over by itself when time goes back)."""
+        if self._cleanup is not None:
+            self._cleanup.reset()
+
+    def __call__(self, positions: npt.ArrayLike, t_s: float) -> tuple[FloatArray, FloatArray]:
+        """An accepted frame, in order, at the sender's time ``t_s``."""
+        if self._cleanup is not None:
+            positions = self._cleanup(positions, t_s)
+        return self._solver.solve(positions)

@@ -4,8 +4,8 @@ Binding, tokens and the receiver thread: robot_retarget.sources.udp_datagram (th
 --allow-remote without --token unless --insecure-no-token is given). Sequence numbers and
 timestamps are checked by ``SequenceFilter`` (robot_retarget.sources.base; its docstring has
 the rule for a sender that restarts). Rotation packets must carry unit quaternions; position
-packets are turned into rotations here, after :class:`PositionCleanup` has undone a tracker's
-frozen joints and swapped limbs (``clean_positions=False``: solved as sent).
+packets are turned into rotations here, after a tracker's frozen joints and swapped limbs are
+undone (:class:`LivePositions`; ``clean_positions=False``: solved as sent).
 """
 
 from __future__ import annotations
@@ -19,8 +19,7 @@ from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources import wire
 from robot_retarget.sources.base import DEFAULT_QUEUE_FRAMES, SourceFrame
-from robot_retarget.sources.from_positions import PositionsToRotations
-from robot_retarget.sources.position_cleanup import PositionCleanup
+from robot_retarget.sources.position_cleanup import LivePositions
 from robot_retarget.sources.udp_datagram import UdpDatagramSource
 
 DEFAULT_PORT = 9750
@@ -56,14 +55,13 @@ class UdpSource(UdpDatagramSource):
             max_queue=max_queue,
             clock=clock,
         )
-        self._positions = PositionsToRotations(skeleton)
-        # Position packets: frozen joints and swapped limbs undone before the solve.
-        self._cleanup = PositionCleanup() if clean_positions else None
+        # Position packets: frozen joints and swapped limbs undone, then solved.
+        self._positions = LivePositions(skeleton, clean=clean_positions)
 
     @property
     def cleans_positions(self) -> bool:
         """Whether position packets are cleaned of frozen joints and swapped limbs."""
-        return self._cleanup is not None
+        return self._positions.cleans
 
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
         """Decode and check one datagram; queue and return the frame, or count the drop."""
@@ -90,8 +88,5 @@ class UdpSource(UdpDatagramSource):
                 return None
             # The cleanup remembers the stream, so it sees accepted frames only, in order (a
             # restart shows as a timestamp that went back, and starts it over).
-            values = pkt.values
-            if self._cleanup is not None:
-                values = self._cleanup(values, pkt.t_s)
-            local, root = self._positions.solve(values)
+            local, root = self._positions(pkt.values, pkt.t_s)
         return self._deliver(SourceFrame(local, root, pkt.t_s, pkt.seq, recv_s))
