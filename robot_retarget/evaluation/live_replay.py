@@ -6,7 +6,9 @@ source's own :class:`~robot_retarget.sources.position_cleanup.LivePositions`, fr
 times, silence where frames are missing — into the :class:`ControlLoop` (interpolation,
 watchdog, ramp, optimizer, safety layer) on simulated time, in front of the kinematic
 simulator. The commands the loop sent are then scored against the CLEAN performer at the clip
-time each command played: segment direction error (eval-robot's measure) and jerk.
+time each command played: segment direction error (eval-robot's measure) and jerk. The robot's
+segment directions are kept, so that two runs of one clip can be compared with each other
+(:func:`deviation_deg`: how far corrupted input moved the robot from where clean input put it).
 """
 
 from __future__ import annotations
@@ -15,9 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.evaluation.live_corruption import CorruptedStream
 from robot_retarget.evaluation.robot.metrics import segment_angles
-from robot_retarget.evaluation.robot.segments import RobotBodyModel, human_body_points
+from robot_retarget.evaluation.robot.segments import BodyPoints, RobotBodyModel, human_body_points
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.pipeline.floating_base import base_rotations
 from robot_retarget.pipeline.input_filter import OneEuroSettings
@@ -98,11 +101,31 @@ class StreamSource(MotionSource):
 @dataclass(frozen=True)
 class LiveScore:
     """Mean segment direction error (°) and mean |jerk| (rad/s³) of the tracked commands
-    played after ``settle_s``; ``commands`` scored."""
+    played after ``settle_s``; ``commands`` scored. ``play_t_s`` (T,): the clip time each
+    scored command played; ``robot``: the robot's segments then, as they were scored."""
 
     direction_deg: float
     jerk_rad_s3: float
     commands: int
+    play_t_s: FloatArray
+    robot: BodyPoints
+
+
+def deviation_deg(run: LiveScore, reference: LiveScore) -> float:
+    """Mean angle (°) between ``run``'s robot segments and ``reference``'s at the same clip
+    time (each command against the reference command played nearest to it): how far the
+    robot moved from the reference run, whatever the performer did. Unlike the rise of the
+    direction error it does not depend on how far the reference itself is from the performer
+    (noise added to a large error can even shrink it)."""
+    ref_t, t = reference.play_t_s, run.play_t_s
+    if len(ref_t) == 0 or len(t) == 0:
+        raise ValueError("deviation_deg needs two runs with scored commands")
+    after = np.clip(np.searchsorted(ref_t, t), 0, len(ref_t) - 1)
+    before = np.maximum(after - 1, 0)
+    nearest = np.where(np.abs(ref_t[before] - t) < np.abs(ref_t[after] - t), before, after)
+    ref = reference.robot
+    matched = BodyPoints(ref.directions[nearest], ref.end_effectors[nearest])
+    return float(np.degrees(segment_angles(run.robot, matched).mean()))
 
 
 def score_live(
@@ -140,8 +163,9 @@ def score_live(
     # A robot on its feet leans its trunk with its legs, as the performer does: it is scored on
     # a base that follows the performer's trunk (the frame the live targets are solved in).
     world = base_rotations(config, trunk_frames_of_positions(positions))
-    angles = segment_angles(human, model.body_points(q, world))
+    robot = model.body_points(q, world)
+    angles = segment_angles(human, robot)
     period = loop.period_s
     third = np.diff(q, n=3, axis=0)
     jerk = float(np.mean(np.abs(third)) / period**3) if third.size else 0.0
-    return LiveScore(float(np.degrees(angles.mean())), jerk, len(q))
+    return LiveScore(float(np.degrees(angles.mean())), jerk, len(q), t, robot)

@@ -4,7 +4,12 @@ Each clip is played as a live sender of each corruption kind
 (:mod:`robot_retarget.evaluation.live_corruption`) through the real control loop
 (:func:`robot_retarget.evaluation.live_replay.score_live`), once per model, and scored against
 the clean performer; ``clean`` is the same sender uncorrupted. Reported per kind: mean segment
-direction error (°), its rise over clean, and mean jerk (rad/s³).
+direction error (°), its rise over clean, the robot's deviation from its clean-input run (°,
+:func:`robot_retarget.evaluation.live_replay.deviation_deg`) and mean jerk (rad/s³).
+
+The deviation is the measure of how much a kind shakes or displaces the robot. The rise is not
+one: a model that is closer to the performer on clean input rises more under the same noise
+(errors add roughly in quadrature, and noise on a large, one-sided error can even shrink it).
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from robot_retarget.evaluation.live_corruption import KINDS, corrupt_stream
-from robot_retarget.evaluation.live_replay import score_live
+from robot_retarget.evaluation.live_replay import LiveScore, deviation_deg, score_live
 from robot_retarget.evaluation.robot.segments import RobotBodyModel
 from robot_retarget.motion.human_motion import load_motion
 from robot_retarget.pipeline.input_filter import OneEuroSettings
@@ -31,6 +36,8 @@ class RobustnessRow:
     direction_deg: float
     jerk_rad_s3: float
     clips: int
+    # Mean over clips of the robot's deviation from its own clean-input run (0 for clean).
+    deviation_deg: float = 0.0
 
 
 def robustness(
@@ -51,13 +58,14 @@ def robustness(
     body = RobotBodyModel(config)
     rows = []
     for model in models:
-        scores: dict[str, list[tuple[float, float]]] = {k: [] for k in ("clean", *kinds)}
+        scores: dict[str, list[tuple[float, float, float]]] = {k: [] for k in ("clean", *kinds)}
         for k, (name, path) in enumerate(clips):
             if progress is not None:
                 progress(f"{model}: {name}")
             motion = load_motion(path, max_frames=max_frames)
             step = RetargetStep(config, model, motion.skeleton)
-            for kind in scores:
+            reference: LiveScore | None = None
+            for kind in scores:  # clean first: the reference of the deviation
                 rng = np.random.default_rng(seed + k)
                 stream = corrupt_stream(motion, kind, rng)
                 s = score_live(
@@ -68,11 +76,12 @@ def robustness(
                     input_filter=input_filter,
                     clean_positions=clean_positions,
                 )
-                scores[kind].append((s.direction_deg, s.jerk_rad_s3))
+                reference = reference or s
+                scores[kind].append((s.direction_deg, s.jerk_rad_s3, deviation_deg(s, reference)))
         for kind, vals in scores.items():
             a = np.array(vals)
             rows.append(RobustnessRow(model, kind, float(a[:, 0].mean()), float(a[:, 1].mean()),
-                                      len(vals)))  # fmt: skip
+                                      len(vals), float(a[:, 2].mean())))  # fmt: skip
     return rows
 
 
@@ -80,16 +89,19 @@ def markdown(rows: Sequence[RobustnessRow]) -> str:
     models = list(dict.fromkeys(r.model for r in rows))
     kinds = list(dict.fromkeys(r.kind for r in rows))
     by = {(r.model, r.kind): r for r in rows}
-    head = "| input | " + " | ".join(f"{m}: direction (rise) / jerk" for m in models) + " |"
+    head = "| input | " + " | ".join(f"{m}: direction (rise) / deviation / jerk" for m in models)
+    head += " |"
     lines = [head, "|---|" + "---:|" * len(models)]
     for kind in kinds:
         cells = []
         for m in models:
             r, clean = by[(m, kind)], by[(m, "clean")]
             rise = r.direction_deg - clean.direction_deg
-            cells.append(f"{r.direction_deg:.2f}° ({rise:+.2f}) / {r.jerk_rad_s3:.0f}")
+            direction = f"{r.direction_deg:.2f}° ({rise:+.2f})"
+            cells.append(f"{direction} / {r.deviation_deg:.2f}° / {r.jerk_rad_s3:.0f}")
         lines.append(f"| {kind} | " + " | ".join(cells) + " |")
     n = rows[0].clips if rows else 0
-    lines.append(f"\n{n} clips, each played live through the control loop; scored against the "
-                 "clean performer.")  # fmt: skip
+    lines.append(f"\n{n} clips, each played live through the control loop; direction error "
+                 "against the clean performer, deviation against the robot's own run on clean "
+                 "input.")  # fmt: skip
     return "\n".join(lines)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from robot_retarget.evaluation.robustness import markdown, robustness
 from robot_retarget.robot.loader import load_robot_config
 
@@ -17,8 +19,13 @@ def test_a_row_per_model_and_kind_with_the_rise_over_clean(shared_data_dir: Path
         ("copy", "clean"), ("copy", "jitter"), ("copy", "swap"),
         ("copy-scaled", "clean"), ("copy-scaled", "jitter"), ("copy-scaled", "swap"),
     ]  # fmt: skip
-    clean = rows[0]
-    assert rows[1].jerk_rad_s3 > clean.jerk_rad_s3  # jitter shakes the servos
+    clean, jitter, swap = rows[:3]
+    assert jitter.jerk_rad_s3 > clean.jerk_rad_s3  # jitter shakes the servos
+    # The robot's deviation from its clean-input run: none for clean input and for short swaps
+    # (the live source swaps them back exactly), degrees for jitter.
+    assert clean.deviation_deg == 0.0
+    assert swap.deviation_deg == pytest.approx(0.0, abs=1e-6)
+    assert jitter.deviation_deg > 1.0
     text = markdown(rows)
     assert "| jitter |" in text
-    assert "(+0.00)" in text  # clean against itself
+    assert "(+0.00) / 0.00° /" in text  # clean against itself
