@@ -96,20 +96,25 @@ class SafetyLayer(JointBackend):
             )
         # minimum(maximum(·)) is np.clip (inputs are finite here) without its wrapper's cost.
         lower, upper = self.lower, self.upper
-        q_pos = np.minimum(np.maximum(q, lower), upper)
-        q_safe = q_pos
-        if self._prev_q is not None:
+        prev = self._prev_q
+        if prev is None:
+            q_safe = np.minimum(np.maximum(q, lower), upper)
+        else:
             dt = self.period_s
             if self._prev_t is not None and cmd.t_s > self._prev_t:
                 dt = min(cmd.t_s - self._prev_t, self.period_s)
             max_step = self.max_velocity * dt
-            q_safe = np.minimum(np.maximum(q_pos, self._prev_q - max_step), self._prev_q + max_step)
-            q_safe = np.minimum(np.maximum(q_safe, lower), upper)
-        pos_clipped = q_pos != q
-        step_clipped = q_safe != q_pos
+            # prev lies inside the limits, so the limits and the step box intersect, and one
+            # clamp to the intersection is the limit clamp followed by the step clamp.
+            lo = np.maximum(prev - max_step, lower)
+            hi = np.minimum(prev + max_step, upper)
+            q_safe = np.minimum(np.maximum(q, lo), hi)
         s = self.stats
         s.commands += 1
-        if pos_clipped.any() or step_clipped.any():
+        if not (q_safe == q).all():  # the bookkeeping only for a command that was changed
+            q_pos = np.minimum(np.maximum(q, lower), upper)
+            pos_clipped = q_pos != q
+            step_clipped = q_safe != q_pos
             s.commands_clipped += 1
             s.position_clips += int(pos_clipped.sum())
             s.step_clips += int(step_clipped.sum())

@@ -118,13 +118,12 @@ def decode_binary(data: bytes) -> WirePacket:
         token = data[_HEADER.size : start].decode("utf-8")
     except UnicodeDecodeError:
         raise WireError("token is not UTF-8") from None
-    # float32 → float64 is exact; a signalling NaN in the packet makes numpy warn "invalid value
-    # in cast" (once per process, from the receiver thread): silenced, as _finite rejects it.
-    with np.errstate(invalid="ignore"):
-        values = np.frombuffer(data, dtype="<f4", count=count, offset=start).astype(np.float64)
     if not math.isfinite(t_s):
         raise WireError("timestamp is not finite", reason="nan")
-    return _packet(kind, int(seq), float(t_s), _finite(values), token)
+    # Checked before the cast: float32 → float64 is exact, but a signalling NaN would make numpy
+    # warn "invalid value in cast" from the receiver thread (an errstate guard costs 3 µs).
+    raw = _finite(np.frombuffer(data, dtype="<f4", count=count, offset=start))
+    return _packet(kind, int(seq), float(t_s), raw.astype(np.float64), token)
 
 
 def _packet(kind: str, seq: int, t_s: float, values: FloatArray, token: str) -> WirePacket:

@@ -41,6 +41,40 @@ def test_no_command_ever_leaves_the_limits(op3: RobotConfig, data: st.DataObject
         prev = sent.q
 
 
+@settings(max_examples=60)
+@given(st.data())
+def test_each_command_is_the_nearest_safe_one_and_every_clip_is_counted(
+    op3: RobotConfig, data: st.DataObject
+) -> None:
+    """The layer's one clamp to (limits ∩ step box) against its definition: the limit clamp,
+    then the step clamp around the previous command; and its statistics against a count."""
+    safe, _ = _layer(op3)
+    n = op3.num_joints
+    period = 1.0 / op3.control_rate_hz
+    prev, prev_t = np.clip(op3.init_pose, op3.lower, op3.upper), None
+    t, clipped, pos_clips, step_clips = 0.0, 0, 0, 0
+    for _ in range(data.draw(st.integers(1, 10))):
+        # Near the previous command, so that some joints pass unchanged and some are clipped.
+        q = prev + data.draw(arrays(np.float64, n, elements=st.floats(-3, 3)))
+        t += data.draw(st.sampled_from([period, period / 3, 5 * period, 0.0, -1.0]))
+        sent = safe.send(JointCommand(q, t)).q
+        dt = min(t - prev_t, period) if prev_t is not None and t > prev_t else period
+        step = op3.max_velocity * dt
+        q_pos = np.clip(q, op3.lower, op3.upper)
+        expected = np.clip(np.clip(q_pos, prev - step, prev + step), op3.lower, op3.upper)
+        np.testing.assert_array_equal(sent, expected)
+        clipped += int((q_pos != q).any() or (expected != q_pos).any())
+        pos_clips += int((q_pos != q).sum())
+        step_clips += int((expected != q_pos).sum())
+        prev, prev_t = expected, t
+    stats = safe.stats
+    assert (stats.commands_clipped, stats.position_clips, stats.step_clips) == (
+        clipped,
+        pos_clips,
+        step_clips,
+    )
+
+
 def test_nan_is_refused_and_nothing_sent(op3: RobotConfig) -> None:
     safe, inner = _layer(op3)
     q = op3.init_pose.copy()
