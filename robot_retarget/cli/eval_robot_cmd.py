@@ -63,7 +63,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="KIND[,KIND…]|all",
         help="instead: play each clip as a live sender with this input corruption (jitter, "
         "dropout, swap, bone_length, latency, low_rate, or all) through the control loop, "
-        "for the model and copy-scaled, against clean input",
+        "for the model and copy-scaled: direction error and its rise over clean input, the "
+        "robot's deviation from its clean-input run, and jerk",
     )
     parser.add_argument(
         "--one-euro",
