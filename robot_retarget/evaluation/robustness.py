@@ -76,7 +76,8 @@ def robustness(
                     input_filter=input_filter,
                     clean_positions=clean_positions,
                 )
-                reference = reference or s
+                if reference is None:  # this is the clean run
+                    reference = s
                 scores[kind].append((s.direction_deg, s.jerk_rad_s3, deviation_deg(s, reference)))
         for kind, vals in scores.items():
             a = np.array(vals)
