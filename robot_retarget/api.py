@@ -45,11 +45,13 @@ def retarget(
     model: RuntimeModel | LoadedModel | str | os.PathLike[str] | None = None,
     *,
     fps: float | None = None,
+    foot_lock: bool = False,
 ) -> RetargetResult:
     """Retarget a BVH file (or a loaded :class:`HumanMotion`) to ``robot`` (a name, a YAML path
     or a loaded config) with ``model`` (a name, a runtime ``.npz`` or checkpoint path, or a
     loaded model; default: the shipped default — its numpy runtime, no torch needed), at ``fps``
-    (default: the robot's control rate)."""
+    (default: the robot's control rate). ``foot_lock``: run the residual network's foot lock
+    (off on the robot by default, as in ``convert``)."""
     motion = (
         clip_or_motion
         if isinstance(clip_or_motion, HumanMotion)
@@ -60,6 +62,6 @@ def retarget(
         loaded = load_runtime_model(os.fspath(model) if model is not None else default_model_name())
     else:
         loaded = model
-    step = RetargetStep(config, loaded, motion.skeleton, rate_hz=fps)
+    step = RetargetStep(config, loaded, motion.skeleton, rate_hz=fps, foot_lock=foot_lock)
     result = convert_motion(motion, step, fps=fps)
     return RetargetResult(result.trajectory, result, loaded.name)

@@ -30,6 +30,7 @@ from functools import partial
 from pathlib import Path
 from typing import TextIO
 
+from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.errors import MotionFormatError, RetargetError
 from robot_retarget.pipeline.clip_converter import (
     ClipConverter,
@@ -79,6 +80,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="a skeleton-aware model (san) reads BVH clips on their own skeleton when it has an "
         "encoder for it; this feeds it the canonical joints instead, as stream does",
     )
+    add_foot_lock_argument(parser)
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     parser.add_argument(
         "--lead-in",
@@ -206,6 +208,7 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
         keypoint_model=args.keypoint_model,
         keypoint_fps=args.keypoint_fps,
         canonical_input=args.canonical_input,
+        foot_lock=args.foot_lock,
     )
 
 
@@ -242,7 +245,7 @@ def _run_batch(args: argparse.Namespace) -> int:
     from robot_retarget.pipeline.clip_pool import LocalClipPool, RayClipPool, import_ray
     from robot_retarget.pipeline.manifest import Manifest
     from robot_retarget.robot.loader import load_robot_config
-    from robot_retarget.runtime.loader import load_runtime_model
+    from robot_retarget.runtime.loader import check_foot_lock, load_runtime_model
     from robot_retarget.sources.keypoints import is_keypoint_input
 
     workers: int | None = args.workers
@@ -259,13 +262,14 @@ def _run_batch(args: argparse.Namespace) -> int:
         )
     options = _options(args)
     load_robot_config(options.robot)  # a wrong name fails here, once, not in every worker
-    load_runtime_model(options.model)
+    check_foot_lock(load_runtime_model(options.model), foot_lock=options.foot_lock)
     settings = {
         "robot": options.robot,
         "model": options.model,
         "fps": options.fps,
         "max_frames": options.max_frames,
         "lead_in": options.lead_in,
+        "foot_lock": options.foot_lock,
         "format": args.format,
     }
     manifest = Manifest.open(args.out, settings, fresh=args.force)

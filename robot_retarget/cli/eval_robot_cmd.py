@@ -7,12 +7,14 @@ against a position-IK baseline and the kinematic limit (robot_retarget.evaluatio
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
 from typing import Any
 
 from robot_retarget.cli.data_dir import add_data_argument
+from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
 NAME = "eval-robot"
@@ -29,6 +31,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="model (default: the pipeline's); 'oracle': an ideal network (the human's own "
         "segment directions as the optimizer's targets)",
     )
+    add_foot_lock_argument(parser)
     parser.add_argument(
         "--val-subjects",
         default=None,
@@ -135,6 +138,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.nn.dataset import DEFAULT_VALIDATION_SUBJECTS
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.runtime.loader import check_foot_lock, load_runtime_model
 
     try:
         config = with_retarget_overrides(load_robot_config(args.robot), _overrides(args.set))
@@ -143,6 +147,10 @@ def run(args: argparse.Namespace) -> int:
             subjects = tuple(s for s in args.val_subjects.split(",") if s)
         clips = validation_clips(args.data, subjects)
         model = args.model or default_model_name()
+        if args.foot_lock:
+            if model == ORACLE_MODEL:
+                raise RetargetError("--foot-lock: the oracle has no network; leave it out")
+            check_foot_lock(load_runtime_model(model), foot_lock=True)
         if args.corrupt is not None:
             return _corrupted(config, clips, str(model), args)
         if args.input == "2d":
@@ -164,9 +172,11 @@ def run(args: argparse.Namespace) -> int:
         report = evaluate_robot(
             config,
             clips,
-            oracle_runner(config) if model == ORACLE_MODEL else pipeline_runner(config, model),
+            oracle_runner(config)
+            if model == ORACLE_MODEL
+            else pipeline_runner(config, model, foot_lock=args.foot_lock),
             settings,
-            model_name=str(model),
+            model_name=_label(model, args),
             progress=progress,
         )
     except RetargetError as exc:
@@ -196,7 +206,10 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
     models = [model] if model == "copy-scaled" else [model, "copy-scaled"]
     rows = robustness(config, clips, models, kinds, max_frames=args.max_frames or 600,
                       input_filter=args.one_euro, clean_positions=not args.raw_positions,
+                      foot_lock_models=[model] if args.foot_lock else [],
                       progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True))  # fmt: skip
+    rows = [dataclasses.replace(r, model=_label(r.model, args)) if r.model == model else r
+            for r in rows]  # fmt: skip
     if args.json:
         print(json.dumps([r.__dict__ for r in rows], indent=2))
     else:
@@ -207,13 +220,15 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
 def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int:
     """``--input 2d``: the clips from 3D and from 2D keypoints per held-out view."""
     from robot_retarget.evaluation.keypoints_2d import evaluate_2d, markdown_2d
+    from robot_retarget.evaluation.robot.runner import pipeline_runner
     from robot_retarget.runtime.agnostic2d import load_keypoint_model
 
     report = evaluate_2d(
         config,
         clips,
-        model,
+        _label(model, args),
         load_keypoint_model(args.keypoint_model),
+        pipeline=pipeline_runner(config, model, foot_lock=args.foot_lock),
         max_frames=args.max_frames,
         progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True),
     )
@@ -233,3 +248,8 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
     else:
         print(markdown_2d(report))
     return 0
+
+
+def _label(model: str, args: argparse.Namespace) -> str:
+    """The model as the report names it: with its foot lock when ``--foot-lock`` ran it."""
+    return f"{model} + foot lock" if args.foot_lock else str(model)

@@ -26,6 +26,7 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
+from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
@@ -69,6 +70,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "are carried with their parents and swapped left/right limbs are swapped back",
     )
     parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    add_foot_lock_argument(parser)
     parser.add_argument("--loop", action="store_true", help="replay: start over at the end")
     parser.add_argument("--speed", type=float, default=1.0, help="replay speed factor")
     parser.add_argument("--token", default="", help="shared secret UDP packets must carry")
@@ -133,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.pipeline.loop import ControlLoop, LoopSettings
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.robot.loader import load_robot_config
-    from robot_retarget.runtime.loader import load_runtime_model
+    from robot_retarget.runtime.loader import check_foot_lock, load_runtime_model
     from robot_retarget.skeleton.canonical import default_canonical_skeleton
     from robot_retarget.sources import open_source
 
@@ -169,7 +171,10 @@ def run(args: argparse.Namespace) -> int:
         clean_positions=not args.raw_positions,
     )
     model = load_runtime_model(args.model or default_model_name())
-    step = RetargetStep(config, model, default_canonical_skeleton(), rate_hz=args.rate)
+    check_foot_lock(model, foot_lock=args.foot_lock)
+    step = RetargetStep(
+        config, model, default_canonical_skeleton(), rate_hz=args.rate, foot_lock=args.foot_lock
+    )
     step.retargeter.warm_up()  # compile / page in before real time
     backend = open_backend(config, args.backend, args.port, fix_registers=args.fix_registers)
 

@@ -14,7 +14,7 @@ one: a model that is closer to the performer on clean input rises more under the
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,11 +50,13 @@ def robustness(
     seed: int = 0,
     input_filter: OneEuroSettings | None = None,
     clean_positions: bool = True,
+    foot_lock_models: Collection[str] = (),
     progress: Callable[[str], None] | None = None,
 ) -> list[RobustnessRow]:
     """Mean over ``clips`` of each model under ``clean`` and each kind (same noise per clip);
     ``input_filter``: the loop smooths its input (``stream --one-euro``);
-    ``clean_positions=False``: the source solves positions as sent (``--raw-positions``)."""
+    ``clean_positions=False``: the source solves positions as sent (``--raw-positions``);
+    ``foot_lock_models``: the models that run their foot lock (``--foot-lock``)."""
     body = RobotBodyModel(config)
     rows = []
     for model in models:
@@ -63,7 +65,7 @@ def robustness(
             if progress is not None:
                 progress(f"{model}: {name}")
             motion = load_motion(path, max_frames=max_frames)
-            step = RetargetStep(config, model, motion.skeleton)
+            step = RetargetStep(config, model, motion.skeleton, foot_lock=model in foot_lock_models)
             reference: LiveScore | None = None
             for kind in scores:  # clean first: the reference of the deviation
                 rng = np.random.default_rng(seed + k)

@@ -21,6 +21,7 @@ import time
 from typing import Any
 
 from robot_retarget.bench_stats import non_negative_int, positive_int, stage_records
+from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 
 HELP = "Per-frame compute time of the live path: decode, network, targets, optimizer, safety."
 
@@ -50,6 +51,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "(robot_retarget.pipeline.benchmark_2d)",
     )
     parser.add_argument("--keypoint-model", help="--source 2d: keypoint model .npz")
+    add_foot_lock_argument(parser)
 
 
 def run(args: argparse.Namespace) -> list[dict[str, Any]]:
@@ -77,8 +79,9 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     positions = motion.positions()
     model = load_runtime_model(args.model or default_model_name())
     receiver = UdpSource(skeleton=motion.skeleton)  # never started: decode path only
-    step = RetargetStep(config, model, motion.skeleton)
-    reference = RetargetStep(config, model, motion.skeleton, frame_program=False)
+    lock = args.foot_lock
+    step = RetargetStep(config, model, motion.skeleton, foot_lock=lock)
+    reference = RetargetStep(config, model, motion.skeleton, frame_program=False, foot_lock=lock)
     for s in (step, reference):
         s.retargeter.warm_up()
         s.reset(config.init_pose)

@@ -70,7 +70,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
     keypoint_step = load_keypoint_model(args.keypoint_model).online()
     tracker = PersonTracker()
     model = load_runtime_model(args.model or default_model_name())
-    step = RetargetStep(config, model, motion.skeleton)
+    step = RetargetStep(config, model, motion.skeleton, foot_lock=args.foot_lock)
     step.retargeter.warm_up()
     step.reset(config.init_pose)
     safety = SafetyLayer(

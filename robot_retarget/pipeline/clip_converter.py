@@ -43,6 +43,8 @@ class ConvertOptions:
     # A skeleton-aware model (san) reads a BVH clip on its own skeleton when it has an encoder
     # for it; True feeds it the canonical joints instead, as ``stream`` does.
     canonical_input: bool = False
+    # The residual network's foot lock (off on the robot by default: RetargetStep).
+    foot_lock: bool = False
 
 
 @dataclass(frozen=True)
@@ -94,7 +96,11 @@ class ClipConverter:
         self.config = load_robot_config(options.robot)
         self.model = load_runtime_model(options.model)
         self.step = RetargetStep(
-            self.config, self.model, default_canonical_skeleton(), rate_hz=options.fps
+            self.config,
+            self.model,
+            default_canonical_skeleton(),
+            rate_hz=options.fps,
+            foot_lock=options.foot_lock,
         )
         self.native_model = None if options.canonical_input else _skeleton_aware(self.model)
 

@@ -67,8 +67,13 @@ class RetargetStep:
         retargeter: Retargeter | None = None,
         rate_hz: float | None = None,
         frame_program: bool = True,
+        foot_lock: bool = False,
     ) -> None:
         self.config = config
+        # The residual network's foot lock holds planted feet on its own output skeleton; on
+        # the robot it costs direction error and jerk (cross-validated, README "Cross-validated
+        # on the robot"), so the robot path leaves it out unless asked (--foot-lock).
+        self.foot_lock = foot_lock
         # The rate frames arrive at (default: the config's control rate): the network's foot
         # lock turns a frame's displacement into a speed with it.
         self.rate_hz = float(rate_hz) if rate_hz is not None else config.control_rate_hz
@@ -94,6 +99,7 @@ class RetargetStep:
             source_skeleton.offsets,
             self.robot_skeleton.offsets,
             frame_rate_hz=self.rate_hz,
+            foot_lock=self.foot_lock,
         )
 
     def warm_up(self, frames: int = 3) -> None:

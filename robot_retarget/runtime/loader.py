@@ -16,7 +16,12 @@ from typing import TYPE_CHECKING
 
 import numpy.typing as npt
 
-from robot_retarget.runtime.model import OnlineStep, RuntimeModel, load_runtime
+from robot_retarget.runtime.model import (
+    OnlineStep,
+    RuntimeModel,
+    load_runtime,
+    no_foot_lock_error,
+)
 from robot_retarget.skeleton.foot_lock_spec import CONTACT_FPS
 
 if TYPE_CHECKING:
@@ -81,16 +86,35 @@ def online_retargeter(
     target_offsets: npt.ArrayLike,
     *,
     frame_rate_hz: float = CONTACT_FPS,
+    foot_lock: bool | None = None,
 ) -> OnlineStep:
     """The live network step for ``model``, run at ``frame_rate_hz``: its numpy runtime when
     it has one (chosen by the model, :meth:`RetargetModel.runtime`), else the torch model
-    stepped frame by frame (which judges speeds at the 30 fps it was trained at)."""
+    stepped frame by frame (which judges speeds at the 30 fps it was trained at).
+    ``foot_lock``: as :meth:`RuntimeModel.online` (None: as the model was trained)."""
     if isinstance(model, RuntimeModel):
-        return model.online(source_offsets, target_offsets, frame_rate_hz=frame_rate_hz)
+        return model.online(
+            source_offsets, target_offsets, frame_rate_hz=frame_rate_hz, foot_lock=foot_lock
+        )
     from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
 
     net = model.model if isinstance(model, LoadedModel) else model
     runtime = net.runtime()
     if runtime is not None:
-        return runtime.online(source_offsets, target_offsets, frame_rate_hz=frame_rate_hz)
+        return runtime.online(
+            source_offsets, target_offsets, frame_rate_hz=frame_rate_hz, foot_lock=foot_lock
+        )
+    if foot_lock:  # only the residual model has a lock, and it always has a runtime
+        name = model.name if isinstance(model, LoadedModel) else type(model).__name__
+        raise no_foot_lock_error(name)
     return OnlineRetargeter(model, source_offsets, target_offsets)
+
+
+def check_foot_lock(model: RuntimeModel | LoadedModel, *, foot_lock: bool) -> None:
+    """Refuse a foot lock asked of a model without one (before any work: a folder's first
+    clip, every worker), naming the model."""
+    if not foot_lock:
+        return
+    runtime = model if isinstance(model, RuntimeModel) else model.model.runtime()
+    if runtime is None or not runtime.has_foot_lock:
+        raise no_foot_lock_error(model.name, model.path)

@@ -128,13 +128,39 @@ class RuntimeModel:
         target_offsets: npt.ArrayLike,
         *,
         frame_rate_hz: float = CONTACT_FPS,
+        foot_lock: bool | None = None,
     ) -> OnlineStep:
         """The per-frame step for a performer (source) and robot (target) rest skeleton, run at
         ``frame_rate_hz`` (what a step that judges speeds, the residual model's foot lock,
-        needs; default: the 30 fps the models are trained at)."""
+        needs; default: the 30 fps the models are trained at).
+
+        ``foot_lock``: None runs the model as exported (its foot lock if it has one, as the
+        torch model and ``eval`` do); False leaves the lock out; True requires one."""
         src = check_offsets("source_offsets", source_offsets)
         tgt = check_offsets("target_offsets", target_offsets)
-        return ARCHITECTURES[self.architecture][1](self.weights, src, tgt, frame_rate_hz)
+        weights = self.weights
+        if foot_lock is not None and foot_lock != self.has_foot_lock:
+            if foot_lock:
+                raise no_foot_lock_error(self.name, self.path)
+            assert isinstance(weights, ResidualWeights)  # has_foot_lock says so
+            weights = dataclasses.replace(weights, foot_lock=False)
+        return ARCHITECTURES[self.architecture][1](weights, src, tgt, frame_rate_hz)
+
+    @property
+    def has_foot_lock(self) -> bool:
+        """Whether the model holds planted feet on its output skeleton (residual models trained
+        with ``foot_lock``, :mod:`robot_retarget.nn.models.foot_lock`)."""
+        return isinstance(self.weights, ResidualWeights) and self.weights.foot_lock
+
+
+def no_foot_lock_error(name: str, path: Path | None = None) -> ModelLoadError:
+    """What asking a model without a foot lock for one raises."""
+    return ModelLoadError(
+        f"model {name!r} has no foot lock (only residual models trained with one have it): "
+        "leave out --foot-lock",
+        path=path,
+        model=name,
+    )
 
 
 # ----------------------------------------------------------------------------- file format

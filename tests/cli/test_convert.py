@@ -11,7 +11,7 @@ import pytest
 
 from robot_retarget.cli import convert_cmd
 from robot_retarget.cli.output_paths import OutputPathError
-from robot_retarget.errors import MotionFormatError
+from robot_retarget.errors import ModelLoadError, MotionFormatError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.pipeline.convert import check_limits
 from robot_retarget.robot.loader import load_robot_config
@@ -189,6 +189,10 @@ def test_bad_arguments(tmp_path: Path) -> None:
     (tmp_path / "empty").mkdir()
     with pytest.raises(MotionFormatError, match=r"no \.bvh files"):
         _run(str(tmp_path / "empty"), "--out", str(tmp_path / "o"))
+    with pytest.raises(ModelLoadError, match="'copy-scaled' has no foot lock") as err:
+        _run(clip, "--out", str(tmp_path / "t.npz"), "--model", "copy-scaled", "--foot-lock")
+    assert err.value.model == "copy-scaled"
+    assert not (tmp_path / "t.npz").exists()
 
 
 def test_progress_bar_writes_only_the_final_line_to_a_file() -> None:

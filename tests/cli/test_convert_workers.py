@@ -78,6 +78,9 @@ def test_rerun_skips_done_clips_and_retries_failed_ones(
 
     with pytest.raises(ManifestError, match="max_frames"):
         _run(str(clips), "--out", str(out), "--workers", "1", "--max-frames", "5")
+    # Outputs made without the network's foot lock are not mixed with ones made with it.
+    with pytest.raises(ManifestError, match="foot_lock"):
+        _run(str(clips), "--out", str(out), "--workers", "1", "--foot-lock")
 
 
 def test_outputs_the_job_did_not_make_still_need_force(clips: Path, tmp_path: Path) -> None:

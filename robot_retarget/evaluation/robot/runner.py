@@ -168,8 +168,9 @@ class EvalRobotReport:
 PipelineFn = Callable[[HumanMotion], PipelineRun]
 
 
-def pipeline_runner(config: RobotConfig, model: str) -> PipelineFn:
-    """The full pipeline (network → optimizer → safety) as one function of a motion."""
+def pipeline_runner(config: RobotConfig, model: str, *, foot_lock: bool = False) -> PipelineFn:
+    """The full pipeline (network → optimizer → safety) as one function of a motion;
+    ``foot_lock``: run the network's foot lock (``--foot-lock``; off on the robot by default)."""
     from robot_retarget.pipeline.convert import convert_motion
     from robot_retarget.pipeline.step import RetargetStep
 
@@ -178,7 +179,7 @@ def pipeline_runner(config: RobotConfig, model: str) -> PipelineFn:
     def run(motion: HumanMotion) -> PipelineRun:
         nonlocal step
         if step is None:
-            step = RetargetStep(config, model, motion.skeleton)
+            step = RetargetStep(config, model, motion.skeleton, foot_lock=foot_lock)
         result = convert_motion(motion, step)
         traj = result.trajectory
         frame_ms = traj.frame_ms

@@ -55,3 +55,23 @@ def test_corrupt_refuses_an_unknown_kind(capsys: pytest.CaptureFixture[str],
     args = parser.parse_args(["--data", str(shared_data_dir / "mocap"), "--corrupt", "fog"])
     assert eval_robot_cmd.run(args) == 1
     assert "unknown kind(s) ['fog']" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("model", "message"), [("oracle", "the oracle has no network"),
+                                                ("copy-scaled", "'copy-scaled' has no foot lock")])
+def test_foot_lock_is_refused_where_there_is_none(
+    model: str, message: str, shared_data_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = _args("--data", str(shared_data_dir / "mocap"), "--val-subjects", "12",
+                 "--model", model, "--foot-lock")  # fmt: skip
+    assert eval_robot_cmd.run(args) == 1
+    assert message in capsys.readouterr().err
+
+
+def test_foot_lock_is_named_in_the_report(
+    shared_data_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = _args("--data", str(shared_data_dir / "mocap"), "--val-subjects", "12",
+                 "--max-frames", "40", "--json", "--cache-dir", "none", "--foot-lock")  # fmt: skip
+    assert eval_robot_cmd.run(args) == 0
+    assert json.loads(capsys.readouterr().out)["model"] == "default + foot lock"
