@@ -57,8 +57,10 @@ def test_corrupt_refuses_an_unknown_kind(capsys: pytest.CaptureFixture[str],
     assert "unknown kind(s) ['fog']" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize(("model", "message"), [("oracle", "the oracle has no network"),
-                                                ("copy-scaled", "'copy-scaled' has no foot lock")])
+@pytest.mark.parametrize(
+    ("model", "message"),
+    [("oracle", "the oracle has no network"), ("copy-scaled", "'copy-scaled' has no foot lock")],
+)
 def test_foot_lock_is_refused_where_there_is_none(
     model: str, message: str, shared_data_dir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
