@@ -230,6 +230,18 @@ def _pin_stance_feet(
         prev_xy, prev_down = xy, down
 
 
+def trajectory_feet(
+    config: RobotConfig, q: npt.ArrayLike, root_pos: npt.ArrayLike, root_quat: npt.ArrayLike
+) -> FloatArray:
+    """(T, F, 3) the robot's foot points (:func:`foot_points`) in the world for joint angles
+    ``q`` (T, J) on a base at ``root_pos`` (T, 3) / ``root_quat`` (T, 4) w-x-y-z: where a tool
+    that loads the trajectory puts its feet."""
+    local = RobotKinematics(config).frame_positions(q, list(foot_points(config)))
+    rot = quat.to_matrix(np.asarray(root_quat, dtype=np.float64))
+    rel = np.einsum("tij,tfj->tfi", rot, local)
+    return np.asarray(rel + np.asarray(root_pos, dtype=np.float64)[:, None, :])
+
+
 def foot_skate_m_s(feet: npt.ArrayLike, fps: float, contact_m: float = CONTACT_M) -> float:
     """Mean horizontal speed (m/s) of robot foot points that stay on the ground (z within
     ``contact_m``) from one frame to the next; 0 when no foot is ever down twice in a row."""

@@ -29,6 +29,7 @@ from robot_retarget.pipeline.floating_base import (
     foot_skate_m_s,
     human_foot_heights_m,
     leg_length_m,
+    trajectory_feet,
 )
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
@@ -160,6 +161,11 @@ def test_pinning_stops_a_stance_foot_sliding(shared_data_dir: Path) -> None:
     pinned = floating_base(config, human, traj.trajectory.q)
     rate = config.control_rate_hz
     assert foot_skate_m_s(pinned.feet, rate) < 0.5 * foot_skate_m_s(free.feet, rate)
+    # What a tool that loads the base pose sees (eval-robot's robot foot skate): its feet.
+    q = traj.trajectory.q
+    seen = trajectory_feet(config, q, pinned.root_pos, pinned.root_quat)
+    np.testing.assert_allclose(seen, pinned.feet, atol=1e-9)
+    assert not np.allclose(seen, free.feet, atol=1e-3)
 
 
 def test_a_heel_strike_is_on_the_ground() -> None:

@@ -52,6 +52,7 @@ def markdown_table(report: EvalRobotReport) -> str:
         ("joint-speed violations", [_fmt(s[m].speed_violations) for m in METHODS]),
         ("max joint speed (rad/s)", [_fmt(s[m].max_speed_rad_s) for m in METHODS]),
         ("**jerk (rad/s³)**", [_fmt(s[m].jerk_rad_s3, 0) for m in METHODS]),
+        ("robot foot skate (m/s)", [_fmt(s[m].foot_skate_m_s, 3) for m in METHODS]),
         ("solver fallbacks", [_fmt(s[m].fallbacks) for m in METHODS]),
         ("compute per frame (ms)", [_fmt(s[m].ms_per_frame, 3) for m in METHODS]),
     ]
@@ -127,6 +128,7 @@ def _summary_dict(s: MethodSummary) -> dict[str, Any]:
         "jerk_rad_s3": s.jerk_rad_s3,
         "fallbacks": s.fallbacks,
         "ms_per_frame": s.ms_per_frame,
+        "foot_skate_m_s": s.foot_skate_m_s,
     }
 
 

@@ -68,7 +68,12 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.optimize.kinematic_limit import KinematicLimit
 from robot_retarget.optimize.position_ik import PositionIK
-from robot_retarget.pipeline.floating_base import base_rotations
+from robot_retarget.pipeline.floating_base import (
+    base_rotations,
+    floating_base,
+    foot_skate_m_s,
+    trajectory_feet,
+)
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.skeleton.trunk import trunk_frames_of_positions
@@ -110,18 +115,24 @@ class PipelineRun:
     # (T, 4) w-x-y-z: the base link's orientation in the Z-up world (the trajectory's floating
     # base); None scores the robot standing upright, as the baselines are.
     root_quat: FloatArray | None = None
+    # (T, 3) m: the base link's position in that world; None: the feet are placed as the
+    # baselines' are (floating_base on the performer's trunk frames).
+    root_pos: FloatArray | None = None
 
 
 @dataclass(frozen=True)
 class MethodClip:
     """One method on one clip. ``angles`` (N, 9) rad and ``ee`` (N, 4) on evaluation frames;
-    ``stats`` None for the kinematic limit (per-frame poses, not a trajectory)."""
+    ``stats`` None for the kinematic limit (per-frame poses, not a trajectory);
+    ``foot_skate_m_s``: how fast the robot's feet slide on the ground on its floating base
+    (every frame; None for the limit)."""
 
     angles: FloatArray
     ee: FloatArray
     stats: TrajectoryStats | None
     fallbacks: int
     ms_per_frame: float
+    foot_skate_m_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -150,6 +161,7 @@ class MethodSummary:
     jerk_rad_s3: float | None
     fallbacks: int | None
     ms_per_frame: float
+    foot_skate_m_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -189,7 +201,12 @@ def pipeline_runner(config: RobotConfig, model: str, *, foot_lock: bool = False)
             else result.wall_s * 1e3 / traj.num_frames
         )
         return PipelineRun(
-            np.asarray(traj.q), traj.fps, result.fallbacks, ms, np.asarray(traj.root_quat)
+            np.asarray(traj.q),
+            traj.fps,
+            result.fallbacks,
+            ms,
+            np.asarray(traj.root_quat),
+            np.asarray(traj.root_pos),
         )
 
     return run
@@ -206,7 +223,6 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
     from robot_retarget.hardware.safety import SafetyLayer
     from robot_retarget.hardware.types import JointCommand
     from robot_retarget.optimize import Retargeter, targets_from_globals
-    from robot_retarget.pipeline.floating_base import floating_base
     from robot_retarget.pipeline.recorder import RecordingBackend
 
     retargeter = Retargeter(config)
@@ -237,7 +253,7 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
         ms = (time.perf_counter() - t0) * 1e3 / m.num_frames
         safety.disconnect()
         base = floating_base(config, m, q)  # the performer's trunk frames, as the targets'
-        return PipelineRun(q, rate, fallbacks, ms, base.root_quat)
+        return PipelineRun(q, rate, fallbacks, ms, base.root_quat, base.root_pos)
 
     return run
 
@@ -298,6 +314,12 @@ class RobotEvaluator:
         pipe_world = world if run.root_quat is None else quat.to_matrix(run.root_quat[:n])
         limit_q, limit_ms = self._limit(h, candidates, world[idx])
         qs = {"pipeline": q_pipe[idx], "gmr": gmr.q[idx], "baseline": base.q[idx], "limit": limit_q}
+        human_n = human if human.num_frames == n else human.frames(0, n)
+        pipe_feet = (
+            floating_base(self.config, human_n, q_pipe).feet
+            if run.root_pos is None or run.root_quat is None
+            else trajectory_feet(self.config, q_pipe, run.root_pos[:n], run.root_quat[:n])
+        )
         methods = {
             "pipeline": self._method(
                 h, q_pipe, idx, rate, run.fallbacks, run.ms_per_frame, pipe_world
@@ -305,6 +327,16 @@ class RobotEvaluator:
             "gmr": self._method(h, gmr.q, idx, rate, 0, gmr_ms, world),
             "baseline": self._method(h, base.q, idx, rate, base.fallbacks, base_ms, world),
             "limit": self._method(h, limit_q, None, rate, 0, limit_ms, world[idx]),
+        }
+        # Feet on the ground, every frame: the pipeline on its trajectory's base, the
+        # baselines on the base convert would give them (the performer's trunk frames).
+        skate = {
+            "pipeline": foot_skate_m_s(pipe_feet, rate),
+            "gmr": foot_skate_m_s(floating_base(self.config, human_n, gmr.q[:n]).feet, rate),
+            "baseline": foot_skate_m_s(floating_base(self.config, human_n, base.q[:n]).feet, rate),
+        }
+        methods = {
+            m: dataclasses.replace(c, foot_skate_m_s=skate.get(m)) for m, c in methods.items()
         }
         return ClipScores(name, n / rate, methods, pos[idx], qs)
 
@@ -416,8 +448,16 @@ def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
             else None,
             fallbacks=sum(p.fallbacks for p in per) if has else None,
             ms_per_frame=float(sum(wi * p.ms_per_frame for wi, p in zip(w, per, strict=True))),
+            foot_skate_m_s=_weighted(w, [p.foot_skate_m_s for p in per]),
         )
     return out
+
+
+def _weighted(w: FloatArray, values: Sequence[float | None]) -> float | None:
+    """The ``w``-weighted mean of per-clip values, or None if a clip has none."""
+    if any(v is None for v in values):
+        return None
+    return float(sum(wi * float(v or 0.0) for wi, v in zip(w, values, strict=True)))
 
 
 def validation_clips(

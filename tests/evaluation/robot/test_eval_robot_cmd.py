@@ -29,6 +29,9 @@ def test_json_and_plots(
     assert out["robot"] == "op3"
     assert out["model"] == "oracle"
     assert len(out["clips"]) == 3
+    skate = {m: v["foot_skate_m_s"] for m, v in out["summary"].items()}
+    assert skate["limit"] is None  # per-frame poses: no feet that move
+    assert all(0.0 <= skate[m] < 2.0 for m in ("pipeline", "gmr", "baseline")), skate
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "eval_robot_op3_segments.png",
         "eval_robot_op3_strip.png",
