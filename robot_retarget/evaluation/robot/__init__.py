@@ -12,9 +12,10 @@
   position-IK baseline and kinematic limit;
 - :mod:`.report` / :mod:`.plots` — markdown table, goal check (issue #11), JSON, figures.
 
-Measured with the shipped model (``python launch.py eval-robot --robot ROBOT
-[--val-subjects …]``, 10 fps scoring; the tuning set is what the optimizer's defaults were
-chosen on, the never-tuned set was looked at only at the end). Every method stands on a
+Measured with the shipped model as the robot path runs it (without its foot lock; ``python
+launch.py eval-robot --robot ROBOT [--val-subjects …]``, 10 fps scoring, 2026-11-26; the tuning
+set is what the optimizer's defaults were chosen on, the never-tuned set was looked at only at
+the end). Every method stands on a
 floating base, scored in the world: the pipeline on its trajectory's own (``root_quat``, the
 network's trunk frames), the baselines and the limit on the performer's trunk frames.
 Direction error mean over the nine segments (in brackets: over the eight limb segments); every
@@ -23,12 +24,12 @@ method had 0 joint-limit and 0 joint-speed violations:
 ========  ===========  =============  =============  =============  =============
 robot     subjects     pipeline       GMR-style IK   position IK    limit
 ========  ===========  =============  =============  =============  =============
-OP3       02 05 13 ¹   13.41 (14.58)  14.89 (16.64)  15.35 (17.15)   9.04 (10.06)
-OP3       06 08 12 ²   13.02 (14.15)  11.26 (12.60)  12.09 (13.53)   8.66 ( 9.68)
-OP3       03 07 10 14  13.54 (14.71)  14.84 (16.63)  15.87 (17.79)   7.28 ( 8.12)
-Poppy     02 05 13 ¹    4.76 ( 4.79)   8.01 ( 5.43)  11.35 (10.84)   0.39 ( 0.43)
-Poppy     06 08 12 ²    3.34 ( 3.28)   7.86 ( 4.14)  11.18 (10.96)   0.03 ( 0.03)
-Poppy     03 07 10 14   3.58 ( 3.58)   5.41 ( 2.35)   9.22 ( 8.71)   0.02 ( 0.02)
+OP3       02 05 13 ¹   13.44 (14.59)  14.89 (16.64)  15.35 (17.15)   9.04 (10.06)
+OP3       06 08 12 ²   12.36 (13.43)  11.26 (12.60)  12.09 (13.53)   8.66 ( 9.68)
+OP3       03 07 10 14  13.05 (14.17)  14.84 (16.63)  15.87 (17.79)   7.28 ( 8.12)
+Poppy     02 05 13 ¹    5.35 ( 5.41)   8.01 ( 5.43)  11.35 (10.84)   0.39 ( 0.43)
+Poppy     06 08 12 ²    3.31 ( 3.27)   7.86 ( 4.14)  11.18 (10.96)   0.03 ( 0.03)
+Poppy     03 07 10 14   3.66 ( 3.61)   5.41 ( 2.35)   9.22 ( 8.71)   0.04 ( 0.03)
 ========  ===========  =============  =============  =============  =============
 
 End-effector error (limb lengths) / jerk (rad/s³):
@@ -36,12 +37,12 @@ End-effector error (limb lengths) / jerk (rad/s³):
 ========  ===========  ============  ============  ============  ======
 robot     subjects     pipeline      GMR-style IK  position IK   limit
 ========  ===========  ============  ============  ============  ======
-OP3       02 05 13 ¹   0.237 / 1478  0.252 / 2940  0.221 / 3678  0.218
-OP3       06 08 12 ²   0.234 / 1549  0.205 / 3376  0.161 / 4235  0.181
-OP3       03 07 10 14  0.245 / 1251  0.274 / 2183  0.250 / 2630  0.167
-Poppy     02 05 13 ¹   0.139 / 1136  0.207 /  760  0.178 / 1287  0.208
-Poppy     06 08 12 ²   0.120 / 1076  0.180 /  794  0.165 / 1457  0.205
-Poppy     03 07 10 14  0.129 /  964  0.188 /  649  0.167 / 1074  0.172
+OP3       02 05 13 ¹   0.240 / 1378  0.252 / 2940  0.221 / 3678  0.218
+OP3       06 08 12 ²   0.215 / 1417  0.205 / 3376  0.161 / 4235  0.181
+OP3       03 07 10 14  0.236 / 1168  0.274 / 2183  0.250 / 2630  0.167
+Poppy     02 05 13 ¹   0.142 / 1056  0.207 /  760  0.178 / 1287  0.208
+Poppy     06 08 12 ²   0.134 / 1011  0.180 /  794  0.165 / 1457  0.205
+Poppy     03 07 10 14  0.139 /  919  0.188 /  649  0.167 / 1074  0.172
 ========  ===========  ============  ============  ============  ======
 
 ¹ tuning set; ² validation subjects (the default). Before the trunk frame (limbs solved for an
