@@ -20,7 +20,7 @@ from robot_retarget.optimize.live_frame import LiveFrameSolver
 from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
-from robot_retarget.runtime.loader import load_runtime_model, online_retargeter
+from robot_retarget.runtime.loader import check_foot_lock, load_runtime_model, online_retargeter
 from robot_retarget.runtime.model import OnlineStep, RuntimeModel
 from robot_retarget.skeleton.skeleton import Skeleton
 
@@ -79,6 +79,7 @@ class RetargetStep:
         self.rate_hz = float(rate_hz) if rate_hz is not None else config.control_rate_hz
         # A name or path: the numpy runtime when there is one (no torch), else torch.
         self.model = load_runtime_model(model) if isinstance(model, str) else model
+        check_foot_lock(self.model, foot_lock=foot_lock)  # before the solver is built
         self.robot_skeleton = robot_canonical_skeleton(config)
         self.retargeter = retargeter if retargeter is not None else Retargeter(config)
         # Per-skeleton constants of the targets, computed once (the per-frame path).

@@ -76,3 +76,58 @@ def test_a_lock_asked_of_a_model_without_one_is_refused(
     assert err.value.model == name
     with pytest.raises(ModelLoadError, match="leave out --foot-lock"):
         RetargetStep(op3, name, demo.skeleton, retargeter=retargeter, foot_lock=True)
+
+
+class _BuiltError(Exception):
+    """Raised by the recording stand-in once the entry point has built its step."""
+
+
+@pytest.fixture
+def built(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
+    """Every robot entry point builds a RetargetStep: record the foot lock it asks for and stop
+    there (nothing is solved)."""
+    import robot_retarget.api
+    import robot_retarget.evaluation.robustness
+    import robot_retarget.pipeline.step
+
+    calls: list[bool] = []
+
+    def record(*_args: object, foot_lock: bool = False, **_kwargs: object) -> None:
+        calls.append(foot_lock)
+        raise _BuiltError
+
+    for module in (robot_retarget.pipeline.step, robot_retarget.api,
+                   robot_retarget.evaluation.robustness):  # fmt: skip
+        monkeypatch.setattr(module, "RetargetStep", record)
+    return calls
+
+
+@pytest.mark.parametrize("asked", [False, True])
+def test_every_robot_entry_point_forwards_the_choice(
+    asked: bool, built: list[bool], op3: RobotConfig, demo: HumanMotion
+) -> None:
+    import argparse
+    from pathlib import Path
+
+    from robot_retarget.api import retarget
+    from robot_retarget.evaluation.robot.runner import pipeline_runner
+    from robot_retarget.evaluation.robustness import robustness
+    from robot_retarget.pipeline import benchmark
+    from robot_retarget.pipeline.clip_converter import ClipConverter, ConvertOptions
+
+    clip = Path(__file__).resolve().parents[1] / "fixtures" / "motion" / "tiny_walk.bvh"
+    parser = argparse.ArgumentParser()
+    benchmark.configure(parser)
+    entry_points = [
+        lambda: retarget(demo, op3, foot_lock=asked),
+        lambda: pipeline_runner(op3, "default", foot_lock=asked)(demo),
+        lambda: robustness(
+            op3, [("t", clip)], ["default"], (), foot_lock_models=["default"] if asked else []
+        ),
+        lambda: ClipConverter(ConvertOptions("op3", "default", foot_lock=asked)),
+        lambda: benchmark.run(parser.parse_args(["--foot-lock"] if asked else [])),
+    ]
+    for enter in entry_points:
+        with pytest.raises(_BuiltError):
+            enter()
+    assert built == [asked] * len(entry_points)

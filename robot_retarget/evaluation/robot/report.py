@@ -144,6 +144,7 @@ def report_dict(report: EvalRobotReport) -> dict[str, Any]:
                         c.methods[m].angles.mean() * 180.0 / 3.141592653589793
                     ),
                     "ee_mean": float(c.methods[m].ee.mean()),
+                    "foot_skate_m_s": c.methods[m].foot_skate_m_s,
                 }
                 for m in METHODS
             },

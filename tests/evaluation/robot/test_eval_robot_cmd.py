@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -73,10 +74,21 @@ def test_foot_lock_is_refused_where_there_is_none(
     assert message in capsys.readouterr().err
 
 
-def test_foot_lock_is_named_in_the_report(
-    shared_data_dir: Path, capsys: pytest.CaptureFixture[str]
+def test_foot_lock_reaches_the_pipeline_and_the_report(
+    shared_data_dir: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    from robot_retarget.evaluation.robot import runner
+
+    asked: list[bool] = []
+    real = runner.pipeline_runner
+
+    def recording(config: Any, model: str, *, foot_lock: bool = False) -> Any:
+        asked.append(foot_lock)
+        return real(config, model, foot_lock=foot_lock)
+
+    monkeypatch.setattr(runner, "pipeline_runner", recording)
     args = _args("--data", str(shared_data_dir / "mocap"), "--val-subjects", "12",
                  "--max-frames", "40", "--json", "--cache-dir", "none", "--foot-lock")  # fmt: skip
     assert eval_robot_cmd.run(args) == 0
+    assert asked == [True]
     assert json.loads(capsys.readouterr().out)["model"] == "default + foot lock"
