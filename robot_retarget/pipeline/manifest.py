@@ -94,9 +94,14 @@ class Manifest:
             ) from exc
         if old != settings:
             changed = sorted(k for k in {*old, *settings} if old.get(k) != settings.get(k))
+            # A setting added since the manifest was written (e.g. foot_lock) was then fixed
+            # by the code of that day: say so rather than leave the user to guess.
+            unrecorded = [k for k in changed if k not in old]
+            since = f" ({', '.join(unrecorded)}: not recorded by the version that wrote it)"
             raise ManifestError(
-                f"its outputs were made with other settings ({', '.join(changed)}); use another "
-                "output folder, or pass --force to convert every clip again",
+                f"its outputs were made with other settings ({', '.join(changed)})"
+                f"{since if unrecorded else ''}; use another output folder, or pass --force to "
+                "convert every clip again",
                 path=path,
                 reason="settings",
             )

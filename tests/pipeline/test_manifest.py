@@ -64,6 +64,10 @@ def test_other_settings_and_unreadable_files_are_refused(tmp_path: Path) -> None
     with pytest.raises(ManifestError, match="fps") as info:
         Manifest.open(tmp_path, {**SETTINGS, "fps": 30.0})
     assert info.value.reason == "settings"
+    assert "not recorded" not in str(info.value)
+    # A setting added since the manifest was written is named as such.
+    with pytest.raises(ManifestError, match=r"foot_lock: not recorded by the version"):
+        Manifest.open(tmp_path, {**SETTINGS, "foot_lock": False})
     assert Manifest.open(tmp_path, {**SETTINGS, "fps": 30.0}, fresh=True).entries == {}
     (tmp_path / MANIFEST_NAME).write_text("{ half a fi")
     with pytest.raises(ManifestError, match="--force") as info:
