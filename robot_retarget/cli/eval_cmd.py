@@ -13,8 +13,16 @@ import argparse
 import dataclasses
 import json
 import sys
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 from robot_retarget.cli.data_dir import add_data_argument
+
+if TYPE_CHECKING:  # torch is imported by the command, not by the CLI's import
+    from robot_retarget.array_types import FloatArray
+    from robot_retarget.evaluation.runner import EvalResult, EvalSettings
+    from robot_retarget.nn.dataset import Clip
+    from robot_retarget.nn.inference import LoadedModel
 
 NAME = "eval"
 HELP = "Evaluate retargeting models on validation subjects (errors, skate, denoising)."
@@ -50,6 +58,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
+    parser.add_argument(
+        "--without-foot-lock",
+        action="store_true",
+        help="also score each model that has a foot lock without it, as convert and stream run "
+        "it on the robot by default, one more row each",
+    )
     parser.add_argument(
         "--native-input",
         action="store_true",
@@ -114,6 +128,8 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         results.append(evaluate(m, val.clips, robots, settings))
+        if args.without_foot_lock and _has_foot_lock(m):
+            results.append(_without_foot_lock(m, val.clips, robots, settings))
         if args.native_input and isinstance(m.model, SAN):
             native = dataclasses.replace(settings, native_input=True)
             results.append(evaluate(m, val.clips, robots, native))
@@ -145,3 +161,27 @@ def run(args: argparse.Namespace) -> int:
                     mark = "met" if check.met else "NOT met"
                     print(f"  {check.goal}: {mark} ({check.detail})")
     return 0
+
+
+def _has_foot_lock(m: LoadedModel) -> bool:
+    from robot_retarget.nn.models.residual import ResidualRetargeter
+
+    return isinstance(m.model, ResidualRetargeter) and m.model.lock is not None
+
+
+def _without_foot_lock(
+    m: LoadedModel, clips: Sequence[Clip], robots: Mapping[str, FloatArray], settings: EvalSettings
+) -> EvalResult:
+    """``m`` scored with its foot lock taken out for the run (the robot path's default)."""
+    from robot_retarget.evaluation.runner import evaluate
+    from robot_retarget.nn.models.residual import ResidualRetargeter
+
+    net = m.model
+    assert isinstance(net, ResidualRetargeter)  # _has_foot_lock said so
+    lock = net.lock
+    net.lock = None
+    try:
+        return evaluate(dataclasses.replace(m, name=f"{m.name}, no foot lock"), clips, robots,
+                        settings)  # fmt: skip
+    finally:
+        net.lock = lock

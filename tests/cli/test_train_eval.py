@@ -188,3 +188,18 @@ def test_san_trains_and_is_scored_on_the_files_own_skeletons(
     assert "tiny_walk.bvh: read on its own skeleton (CMU MotionBuilder-25j)" in err
     assert outs[0].shape == outs[1].shape
     assert not np.allclose(outs[0], outs[1])
+
+
+def test_eval_scores_the_network_without_its_foot_lock_beside_it(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--without-foot-lock adds a row per model that has a lock (as the robot path runs it) and
+    none for models without one."""
+    argv = ["--model", "default", "--model", "copy", "--data", str(mocap), "--json",
+            "--cache-dir", str(tmp_path / "c"), "--max-frames", "60",
+            "--without-foot-lock"]  # fmt: skip
+    assert _run(eval_cmd, argv) == 0
+    results = json.loads(capsys.readouterr().out)["results"]
+    assert [r["model"] for r in results] == ["default", "default, no foot lock", "copy"]
+    scores = [{k: v for k, v in r.items() if k != "model"} for r in results[:2]]
+    assert scores[0] != scores[1]  # the lock holds a foot somewhere in these walks
