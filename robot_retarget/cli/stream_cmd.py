@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.pipeline.loop import ControlLoop, LoopSettings
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.robot.loader import load_robot_config
-    from robot_retarget.runtime.loader import check_foot_lock, load_runtime_model
+    from robot_retarget.runtime.loader import load_runtime_model
     from robot_retarget.skeleton.canonical import default_canonical_skeleton
     from robot_retarget.sources import open_source
 
@@ -171,8 +171,7 @@ def run(args: argparse.Namespace) -> int:
         clean_positions=not args.raw_positions,
     )
     model = load_runtime_model(args.model or default_model_name())
-    check_foot_lock(model, foot_lock=args.foot_lock)
-    step = RetargetStep(
+    step = RetargetStep(  # refuses a foot lock the model lacks before it builds the solver
         config, model, default_canonical_skeleton(), rate_hz=args.rate, foot_lock=args.foot_lock
     )
     step.retargeter.warm_up()  # compile / page in before real time
