@@ -24,12 +24,15 @@ class SolveResult:
     the velocity box around the previous command (or moving toward the limits at ≤ v_max when
     the previous command was outside them). ``max_violation`` is the largest violation of the
     *solver's* constraints (twist bound, ground, rad or m) before clipping: 0 when satisfied.
+    ``iterations`` is the SQP's iteration count; None for an online frame that converged (the
+    live path does not read casadi's statistics for it: 35–50 µs per frame; right after a
+    solve, ``Retargeter.online_solver.last_status()`` reads them).
     """
 
     status: SolveStatus
     q: FloatArray = field(repr=False)
     cost: float
-    iterations: int
+    iterations: int | None
     solve_time_s: float
     max_violation: float
     used_fallback: bool

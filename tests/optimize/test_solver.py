@@ -56,14 +56,42 @@ def test_buffered_solve_matches_plain_call(twist_arm: RobotConfig, qpsol: str) -
     buffered.ubx[:] = twist_arm.upper
     buffered.lbg[:] = -np.inf
     buffered.ubg[:] = np.inf
-    converged, iters, status = buffered.call()
+    converged = buffered.call()
+    iters, status = buffered.last_status()
     assert converged, status
     assert iters >= 1
+    assert status == "Solve_Succeeded"
     plain = solver(
         x0=buffered.x0, p=buffered.p, lbx=buffered.lbx, ubx=buffered.ubx,
         lbg=buffered.lbg, ubg=buffered.ubg,
     )  # fmt: skip
     np.testing.assert_allclose(buffered.x, np.asarray(plain["x"]).ravel(), atol=1e-7)
+
+
+def test_a_solve_stopped_at_max_iter_says_so_and_keeps_its_iterate(
+    twist_arm: RobotConfig,
+) -> None:
+    """A solve that does not converge is how casadi's error_on_fail reaches call(): False, the
+    iterate written, and the count and status on demand."""
+    prob = RobotProblem(twist_arm)
+    spec = SolverSpec(name="t", qpsol="daqp", max_iter=1, jit=False, hessian="exact")
+    solver, _ = build_solver(spec, prob.build_nlp(1))
+    buffered = BufferedSolver(solver, False)
+    q = np.clip(np.full(twist_arm.num_joints, 1.2), twist_arm.lower, twist_arm.upper)
+    lay = retarget_objective(prob, RetargetSettings()).layout
+    buffered.p[lay.frame(0, "bone_direction.target")] = np.asarray(
+        prob.directions_function(q)
+    ).T.ravel()
+    buffered.p[lay.frame(0, "bone_direction.weight")] = 1.0
+    buffered.lbx[:] = twist_arm.lower
+    buffered.ubx[:] = twist_arm.upper
+    buffered.lbg[:] = -np.inf
+    buffered.ubg[:] = np.inf
+    buffered.x[:] = np.nan  # the iterate must be written over this
+    assert not buffered.call()
+    assert buffered.last_status() == (1, "Maximum_Iterations_Exceeded")
+    assert np.all(np.isfinite(buffered.x))
+    assert not np.allclose(buffered.x, 0.0)  # one step moved it from the start (zeros)
 
 
 def test_unknown_choices_are_rejected(twist_arm: RobotConfig) -> None:
