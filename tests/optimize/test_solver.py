@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -37,25 +38,32 @@ def test_find_compiler() -> None:
     assert find_compiler("no-such-cc-for-robot-retarget") is None
 
 
-@pytest.mark.parametrize("qpsol", ["daqp", "qrqp", "osqp"])
-def test_buffered_solve_matches_plain_call(twist_arm: RobotConfig, qpsol: str) -> None:
-    prob = RobotProblem(twist_arm)
-    nlp = prob.build_nlp(1)
-    spec = SolverSpec(name="t", qpsol=qpsol, max_iter=20, jit=False, hessian="exact")
-    solver, jit_used = build_solver(spec, nlp)
+def _solver_toward(
+    arm: RobotConfig, q: np.ndarray, *, qpsol: str, max_iter: int
+) -> tuple[ca.Function, BufferedSolver]:
+    """An interpreted one-frame solver whose bone-direction targets are those of pose ``q``,
+    within the joint limits, from the zero start."""
+    prob = RobotProblem(arm)
+    spec = SolverSpec(name="t", qpsol=qpsol, max_iter=max_iter, jit=False, hessian="exact")
+    solver, jit_used = build_solver(spec, prob.build_nlp(1))
     assert not jit_used
     buffered = BufferedSolver(solver, jit_used)
-    rng = np.random.default_rng(0)
-    q = rng.uniform(twist_arm.lower, twist_arm.upper)
     lay = retarget_objective(prob, RetargetSettings()).layout
     buffered.p[lay.frame(0, "bone_direction.target")] = np.asarray(
         prob.directions_function(q)
     ).T.ravel()
     buffered.p[lay.frame(0, "bone_direction.weight")] = 1.0
-    buffered.lbx[:] = twist_arm.lower
-    buffered.ubx[:] = twist_arm.upper
+    buffered.lbx[:] = arm.lower
+    buffered.ubx[:] = arm.upper
     buffered.lbg[:] = -np.inf
     buffered.ubg[:] = np.inf
+    return solver, buffered
+
+
+@pytest.mark.parametrize("qpsol", ["daqp", "qrqp", "osqp"])
+def test_buffered_solve_matches_plain_call(twist_arm: RobotConfig, qpsol: str) -> None:
+    q = np.random.default_rng(0).uniform(twist_arm.lower, twist_arm.upper)
+    solver, buffered = _solver_toward(twist_arm, q, qpsol=qpsol, max_iter=20)
     converged = buffered.call()
     iters, status = buffered.last_status()
     assert converged, status
@@ -73,20 +81,8 @@ def test_a_solve_stopped_at_max_iter_says_so_and_keeps_its_iterate(
 ) -> None:
     """A solve that does not converge is how casadi's error_on_fail reaches call(): False, the
     iterate written, and the count and status on demand."""
-    prob = RobotProblem(twist_arm)
-    spec = SolverSpec(name="t", qpsol="daqp", max_iter=1, jit=False, hessian="exact")
-    solver, _ = build_solver(spec, prob.build_nlp(1))
-    buffered = BufferedSolver(solver, False)
     q = np.clip(np.full(twist_arm.num_joints, 1.2), twist_arm.lower, twist_arm.upper)
-    lay = retarget_objective(prob, RetargetSettings()).layout
-    buffered.p[lay.frame(0, "bone_direction.target")] = np.asarray(
-        prob.directions_function(q)
-    ).T.ravel()
-    buffered.p[lay.frame(0, "bone_direction.weight")] = 1.0
-    buffered.lbx[:] = twist_arm.lower
-    buffered.ubx[:] = twist_arm.upper
-    buffered.lbg[:] = -np.inf
-    buffered.ubg[:] = np.inf
+    _, buffered = _solver_toward(twist_arm, q, qpsol="daqp", max_iter=1)
     buffered.x[:] = np.nan  # the iterate must be written over this
     assert not buffered.call()
     assert buffered.last_status() == (1, "Maximum_Iterations_Exceeded")
