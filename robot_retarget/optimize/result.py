@@ -25,7 +25,7 @@ class SolveResult:
     the previous command was outside them). ``max_violation`` is the largest violation of the
     *solver's* constraints (twist bound, ground, rad or m) before clipping: 0 when satisfied.
     ``iterations`` is the SQP's iteration count; None for an online frame that converged (the
-    live path does not read casadi's statistics for it: 35–50 µs per frame; right after a
+    live path does not read casadi's statistics for it: 15–50 µs per frame; right after a
     solve, ``Retargeter.online_solver.last_status()`` reads them).
     """
 

@@ -20,8 +20,8 @@ Chosen by measurement on OP3 (numbers in the package docstring):
   The buffer and arrays must stay referenced: they do, as attributes of :class:`BufferedSolver`.
 - A solve that does not converge raises (``error_on_fail``), and that is how a call learns it
   failed: casadi's ``stats()``, the other way to learn it, builds a Python dict of ~30 entries
-  and took 35–50 µs per frame in the live path (``bench pipeline``, OP3: 0.398 → 0.348 ms per
-  step without it). The iteration count and status text are read only when asked
+  and took 15–50 µs per frame in the live path (OP3's step, alternating in one process:
+  0.397 → 0.354 ms without it). The iteration count and status text are read only when asked
   (:meth:`BufferedSolver.last_status`): after a failed solve, or for an offline window.
 """
 
