@@ -81,7 +81,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--raw-positions",
         action="store_true",
         help="with --corrupt: the live source solves position packets as sent, as stream "
-        "--raw-positions does (no frozen-joint or limb-swap cleanup)",
+        "--raw-positions does (no frozen-joint, limb-swap or jitter cleanup)",
     )
     parser.add_argument(
         "--input",

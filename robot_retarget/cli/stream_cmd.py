@@ -67,7 +67,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--raw-positions",
         action="store_true",
         help="udp: solve position packets as sent; by default joints a tracker holds in place "
-        "are carried with their parents and swapped left/right limbs are swapped back",
+        "are carried with their parents, swapped left/right limbs are swapped back and "
+        "frame-to-frame jitter is filtered as strongly as the stream shows it",
     )
     parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
     add_foot_lock_argument(parser)

@@ -140,7 +140,7 @@ def score_live(
 ) -> LiveScore:
     """Run ``stream`` through the loop (clip rate ``clean.fps`` as the sender's nominal rate)
     and score the commands against ``clean``; ``clean_positions=False``: the source solves
-    the positions as sent (no cleanup of frozen joints and swapped limbs)."""
+    the positions as sent (no cleanup of frozen joints, swapped limbs and jitter)."""
     config = step.config
     clock = _SimClock()
     # Join the motion at once: the ramp is the same for every kind and is not what is scored.

@@ -63,8 +63,8 @@ def open_source(
     clean_positions: bool = True,
 ) -> MotionSource:
     """A (not yet started) source for ``spec``; raises SourceError for anything unusable.
-    ``clean_positions=False``: a UDP source solves position packets as sent (no frozen-joint
-    or limb-swap cleanup, :mod:`robot_retarget.sources.position_cleanup`)."""
+    ``clean_positions=False``: a UDP source solves position packets as sent (no frozen-joint,
+    limb-swap or jitter cleanup, :mod:`robot_retarget.sources.position_cleanup`)."""
     if spec.startswith("replay:"):
         from robot_retarget.errors import MotionFormatError
         from robot_retarget.motion.human_motion import load_motion

@@ -3,8 +3,9 @@
 Two tracker faults are undone frame by frame, each by evidence no real measurement produces
 (:mod:`.frozen_joints`, :mod:`.limb_swaps`): joints held in place while occluded are carried
 along with their parents, then left and right limbs swapped by the estimator are swapped back.
-Everything else (jitter, bone-length noise, latency) passes unchanged: telling it from motion
-takes a filter with lag (``stream --one-euro``), not a rule.
+Then the frame-to-frame jitter is filtered as strongly as the stream shows it
+(:mod:`.jitter_filter`: on a clean stream it all but passes frames through). Bone-length noise
+and latency pass unchanged.
 """
 
 from __future__ import annotations
@@ -16,23 +17,26 @@ from robot_retarget.skeleton.canonical import ARM_CHAINS, CANONICAL_PARENTS, LEG
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources.from_positions import PositionsToRotations
 from robot_retarget.sources.frozen_joints import FrozenJointFill
+from robot_retarget.sources.jitter_filter import JitterFilter
 from robot_retarget.sources.limb_swaps import LimbSwapFix
 
 
 class PositionCleanup:
-    """``cleanup(positions (22, 3), t_s)`` → the canonical joints with tracker faults undone;
-    ``t_s`` is the sender's timestamp. Frames must come in the order they are accepted; one
-    whose timestamp goes back starts a new stream (a sender restart)."""
+    """``cleanup(positions (22, 3), t_s)`` → the canonical joints with tracker faults undone
+    and jitter filtered; ``t_s`` is the sender's timestamp. Frames must come in the order they
+    are accepted; one whose timestamp goes back starts a new stream (a sender restart)."""
 
     def __init__(self) -> None:
         self.frozen = FrozenJointFill(CANONICAL_PARENTS)
         self.swaps = LimbSwapFix((ARM_CHAINS, LEG_CHAINS))
+        self.jitter = JitterFilter(CANONICAL_PARENTS)
         self._last_t: float | None = None
 
     def reset(self) -> None:
         """A new stream: nothing carried over from the last one."""
         self.frozen.reset()
         self.swaps.reset()
+        self.jitter.reset()
         self._last_t = None
 
     def __call__(self, positions: npt.ArrayLike, t_s: float) -> FloatArray:
@@ -40,8 +44,9 @@ class PositionCleanup:
         if self._last_t is not None and not t > self._last_t:
             self.reset()
         self._last_t = t
-        # Frozen joints first: they are told by a bitwise repeat of the labels as sent.
-        return self.swaps(self.frozen(positions), t)
+        # Frozen joints first: they are told by a bitwise repeat of the labels as sent; the
+        # jitter filter last, so that it never smooths across a swap or toward a frozen joint.
+        return self.jitter(self.swaps(self.frozen(positions), t), t)
 
 
 class LivePositions:
@@ -55,7 +60,7 @@ class LivePositions:
 
     @property
     def cleans(self) -> bool:
-        """Whether frames are cleaned of frozen joints and swapped limbs before the solve."""
+        """Whether frames are cleaned (frozen joints, swapped limbs, jitter) before the solve."""
         return self._cleanup is not None
 
     def reset(self) -> None:

@@ -5,7 +5,8 @@ Binding, tokens and the receiver thread: robot_retarget.sources.udp_datagram (th
 timestamps are checked by ``SequenceFilter`` (robot_retarget.sources.base; its docstring has
 the rule for a sender that restarts). Rotation packets must carry unit quaternions; position
 packets are turned into rotations here, after a tracker's frozen joints and swapped limbs are
-undone (:class:`LivePositions`; ``clean_positions=False``: solved as sent).
+undone and its jitter filtered (:class:`LivePositions`; ``clean_positions=False``: solved as
+sent).
 """
 
 from __future__ import annotations
@@ -55,12 +56,12 @@ class UdpSource(UdpDatagramSource):
             max_queue=max_queue,
             clock=clock,
         )
-        # Position packets: frozen joints and swapped limbs undone, then solved.
+        # Position packets: frozen joints and swapped limbs undone, jitter filtered, then solved.
         self._positions = LivePositions(skeleton, clean=clean_positions)
 
     @property
     def cleans_positions(self) -> bool:
-        """Whether position packets are cleaned of frozen joints and swapped limbs."""
+        """Whether position packets are cleaned (frozen joints, swapped limbs, jitter)."""
         return self._positions.cleans
 
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
