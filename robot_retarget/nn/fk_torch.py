@@ -21,23 +21,14 @@ import torch
 
 from robot_retarget.nn import quaternion_torch as tq
 from robot_retarget.skeleton.skeleton import Skeleton
+from robot_retarget.skeleton.tree_tables import validated_parents
 
 Tensor = torch.Tensor
 
 
-def _validate_parents(parents: Sequence[int]) -> tuple[int, ...]:
-    out = tuple(int(p) for p in parents)
-    if not out or out[0] != -1:
-        raise ValueError(f"joint 0 must be the root (parent -1); got parents {list(out)}")
-    for i, p in enumerate(out[1:], start=1):
-        if not 0 <= p < i:
-            raise ValueError(f"joint {i} has parent {p}; parents must come before their children")
-    return out
-
-
 def depth_levels(parents: Sequence[int]) -> tuple[tuple[int, ...], ...]:
     """Joint indices grouped by depth below the root: level 0 is (0,), level 1 its children…"""
-    return _depth_levels(_validate_parents(parents))
+    return _depth_levels(validated_parents(parents))
 
 
 @lru_cache(maxsize=64)
@@ -127,7 +118,7 @@ def forward_kinematics(
         if offsets is None:
             offsets = parents.offsets
     else:
-        pars = _validate_parents(parents)
+        pars = validated_parents(parents)
         if offsets is None:
             raise ValueError("offsets are required when parents is an index list, not a Skeleton")
     num_joints = len(pars)
@@ -166,7 +157,7 @@ def forward_kinematics(
 
 def local_from_global(parents: Skeleton | Sequence[int], global_quats: Tensor) -> Tensor:
     """Local rotations (…, J, 4) from global ones: q_n = G_parent(n)* ⊗ G_n (root unchanged)."""
-    pars = parents.parents if isinstance(parents, Skeleton) else _validate_parents(parents)
+    pars = parents.parents if isinstance(parents, Skeleton) else validated_parents(parents)
     if global_quats.shape[-2:] != (len(pars), 4):
         raise ValueError(
             f"global rotations must have shape (..., {len(pars)}, 4), "

@@ -16,6 +16,21 @@ import numpy as np
 from robot_retarget.array_types import FloatArray
 
 
+def validated_parents(parents: Sequence[int]) -> tuple[int, ...]:
+    """``parents`` as ints, checked for the order every table here assumes: joint 0 is the root
+    (parent -1) and each other joint's parent comes before it."""
+    out = tuple(int(p) for p in parents)
+    if not out or out[0] != -1:
+        raise ValueError(f"joint 0 must be the root (parent -1), got parents {list(out)}")
+    for i, p in enumerate(out[1:], start=1):
+        if not 0 <= p < i:
+            raise ValueError(
+                f"joint {i}'s parent {p} must come before it (parents must come before their "
+                "children)"
+            )
+    return out
+
+
 def pointer_jumps(parents: Sequence[int]) -> tuple[tuple[int, ...], ...]:
     """Ancestor index lists for pointer jumping over J joints, each of length J + 1.
 

@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import BoolArray, FloatArray
+from robot_retarget.skeleton.tree_tables import validated_parents
 
 
 class FrozenJointFill:
@@ -33,12 +34,7 @@ class FrozenJointFill:
     must come before their children. :attr:`frozen` is the last frame's mask of filled joints."""
 
     def __init__(self, parents: Sequence[int]) -> None:
-        self._parents = tuple(int(p) for p in parents)
-        if not self._parents or self._parents[0] != -1:
-            raise ValueError(f"joint 0 must be the root (parent -1), got parents {self._parents}")
-        for j, p in enumerate(self._parents[1:], start=1):
-            if not 0 <= p < j:
-                raise ValueError(f"joint {j}'s parent {p} must come before it")
+        self._parents = validated_parents(parents)
         self._sent: list[list[float]] | None = None  # the last frame as sent
         self._placed: FloatArray | None = None  # the last frame as filled
         self._held: dict[int, FloatArray] = {}  # frozen joint → its bone when last seen moving

@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import CompiledFunction, compile_graph, memoized_graph
+from robot_retarget.skeleton.tree_tables import validated_parents
 
 ROOT_PROCESS_NOISE = 3.0
 """White acceleration density (m²/s³) of the root position's constant-velocity model."""
@@ -72,11 +73,7 @@ class JitterFilter:
         direction_process_noise: float = DIRECTION_PROCESS_NOISE,
         window: int = NOISE_WINDOW,
     ) -> None:
-        pars = tuple(int(p) for p in parents)
-        if not pars or pars[0] != -1:
-            raise ValueError(f"joint 0 must be the root (parent -1), got parents {pars}")
-        if any(not 0 <= p < j for j, p in enumerate(pars) if j > 0):
-            raise ValueError(f"every joint's parent must come before it, got parents {pars}")
+        pars = validated_parents(parents)
         for name, q in (("root", root_process_noise), ("direction", direction_process_noise)):
             if not (np.isfinite(q) and q > 0.0):
                 raise ValueError(f"{name} process noise must be a finite number > 0, got {q}")
@@ -95,7 +92,6 @@ class JitterFilter:
         """A new stream: the next frame passes through and starts the filter."""
         self._t: float | None = None
         self._frames = 0
-        self._d2_count = 0
         self._r[:] = 0.0
         self.noise = np.zeros(self.num_joints)
 
@@ -118,15 +114,15 @@ class JitterFilter:
         np.copyto(self._state, self._state_next)
         self._frames += 1
         if self._frames >= 3:  # two frames as sent before this one: a second difference
-            self._record_second_difference()
+            self._record_second_difference(self._frames - 3)
         return self._out.reshape(j, 3).copy()
 
-    def _record_second_difference(self) -> None:
+    def _record_second_difference(self, index: int) -> None:
+        """Record the stream's ``index``-th second difference (from 0); re-estimate the noise."""
         j, window = self.num_joints, self._window
-        self._d2[:, self._d2_count % window] = self._d2_now.reshape(j, 3)
-        self._d2_count += 1
-        n = min(self._d2_count, window)
-        if n >= _MIN_FRAMES and (n < window or self._d2_count % _NOISE_EVERY == 0):
+        self._d2[:, index % window] = self._d2_now.reshape(j, 3)
+        n = min(index + 1, window)
+        if n >= _MIN_FRAMES and (n < window or (index + 1) % _NOISE_EVERY == 0):
             seen = self._d2[:, :n].reshape(j, -1)
             mad = np.partition(seen, seen.shape[1] // 2, axis=1)[:, seen.shape[1] // 2]
             self.noise = mad / (_GAUSS_MAD * np.sqrt(_SECOND_DIFF_VAR))
