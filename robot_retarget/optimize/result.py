@@ -13,6 +13,9 @@ class SolveStatus(str, Enum):
 
     OPTIMAL = "optimal"  # the solver converged; output checked against every hard limit
     MAX_ITER = "max_iter"  # iteration cap hit; the (feasible, clipped) iterate is used
+    # Stopped at the step tolerance (settings.step_tol_ticks): the next step would move no
+    # joint by more than a fraction of a servo tick; checked against every hard limit.
+    STEP_TOL = "step_tol"
     FALLBACK = "fallback"  # the solver failed; projection of the previous command is used
 
 
@@ -40,4 +43,5 @@ class SolveResult:
 
     @property
     def ok(self) -> bool:
-        return self.status is SolveStatus.OPTIMAL
+        """Converged: to the KKT tolerances, or to the step tolerance (finer than a tick)."""
+        return self.status in (SolveStatus.OPTIMAL, SolveStatus.STEP_TOL)

@@ -36,15 +36,28 @@ from robot_retarget.optimize.objective import ParameterWriter, retarget_objectiv
 from robot_retarget.optimize.online_check import OnlineCheck
 from robot_retarget.optimize.result import SolveResult, SolveStatus
 from robot_retarget.optimize.settings import RetargetSettings
-from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver
+from robot_retarget.optimize.solver import (
+    STEP_TOL_STATUS,
+    BufferedSolver,
+    SolverSpec,
+    build_solver,
+)
 from robot_retarget.optimize.targets import ClipTargets, FrameTargets, check_array, check_dt
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.servo_models import servo_model
 
 _CONSTRAINT_TOL = 1e-6  # twist (rad) / ground (m) violation still called "satisfied"
+_MIN_STEP_FLOOR = 1e-12  # the smallest SQP step that still counts as progress (rad)
 _NO_GROUND = 1e9  # lower bound for foot heights when the root height is unknown (m)
 # A settling solve's time step (s): its velocity box opens to the joint limits and the
 # smoothness terms (∝ 1/dt², 1/dt⁴) vanish, so repeated solves converge to the frame's optimum.
 _SETTLE_DT_S = 1e3
+_SETTLE_SOLVES = 10
+_SETTLE_TOL_RAD = 1e-6  # a settle ends when a re-solve moves no joint by more than this
+# The pursuit's time step (s): each re-solve moves a joint by at most its speed limit × this
+# (0.25-0.3 rad on OP3's and Poppy's servos), and 60 of them cover any joint's range.
+_SETTLE_PURSUIT_DT_S = 0.05
+_SETTLE_PURSUIT_SOLVES = 60
 
 
 @dataclass(frozen=True)
@@ -94,13 +107,20 @@ class Retargeter:
         self.objective = retarget_objective(self.problem, self.settings)
         self._cache_dir = None if cache_dir is None else Path(cache_dir)
         self._compiler = compiler
+        # The online SQP's step tolerance (rad), a share of the finest servo tick on the robot
+        # (settings.step_tol_ticks): where steps shrink geometrically, what a solve has left
+        # once they are that small moves no joint by a whole tick.
+        finest_tick = min(servo_model(j.servo_model).rad_per_tick for j in config.joints)
+        self.step_tol_rad = self.settings.step_tol_ticks * finest_tick
         # Stationarity to 1e-4 (not the SQP's default 1e-7): near a straight limb the cost is
         # flat about the limb's own axis and 1e-7 took Poppy 15 iterations at p90 for poses
         # ≤ 1.7e-4 rad apart on the demo, a tenth of a servo tick. From 1e-5 to 1e-4 Poppy's
         # iterations per frame went from 3.07 to 1.95 (p90 7 → 4), commands moved by 2e-4 rad
         # at the median frame and ≤ 4e-3 rad on both robots, and eval-robot scored the same,
         # offline and live, to every digit of its tables.
-        self._online = self._build(1, "daqp", jit, hessian="exact", tol_du=ONLINE_TOL_DU)
+        self._online = self._build(
+            1, "daqp", jit, hessian="exact", tol_du=ONLINE_TOL_DU, min_step=self.step_tol_rad
+        )
         self._online_params = self._init_static(self._online, 1)
         # Compiled where the solver is (no compiler named by the caller: interpreted as it).
         self._online_check = OnlineCheck(
@@ -122,6 +142,7 @@ class Retargeter:
         max_iter: int | None = None,
         tol_pr: float = 1e-9,
         tol_du: float = 1e-7,
+        min_step: float = 0.0,
     ) -> BufferedSolver:
         nlp = self.problem.build_nlp(window, self.objective)
         spec = SolverSpec(
@@ -131,6 +152,7 @@ class Retargeter:
             max_iter=self.settings.max_iter if max_iter is None else max_iter,
             tol_pr=tol_pr,
             tol_du=tol_du,
+            min_step=max(min_step, _MIN_STEP_FLOOR),
             jit=jit,
             compiler=self._compiler,
             cache_dir=self._cache_dir,
@@ -336,6 +358,8 @@ class Retargeter:
         status_text = ""
         if status is not SolveStatus.OPTIMAL:
             iters, status_text = s.last_status()
+            if status is SolveStatus.MAX_ITER and status_text == STEP_TOL_STATUS:
+                status = SolveStatus.STEP_TOL
         self._q_prev2 = self._q_prev
         self._q_prev = q
         s.x0[:] = q
@@ -350,34 +374,61 @@ class Retargeter:
             message=status_text,
         )
 
-    def settle(
-        self, targets: FrameTargets, *, max_solves: int = 10, tol_rad: float = 1e-6
-    ) -> SolveResult:
+    def settle(self, targets: FrameTargets) -> SolveResult:
         """One frame solved to its optimum with no velocity limit: the start of a sequence.
 
         The result becomes the history (as if the robot had rested there), so the next
         :meth:`solve` goes on from it at the velocity limits. Nothing here bounds the jump from
         the previous command: the caller either starts a file there or pursues the result at a
         limited speed (the control loop's ramp). Joint limits and twist bounds still hold.
-        Every limb is then solved from two more starts (its joints at zero and negated) and
+
+        The frame has several local optima, so it is solved from the current pose twice and the
+        lower cost wins: re-solved with no velocity limit (the SQP's own steps, which can jump
+        far), and pursued in steps bounded by the servos' speeds over
+        ``_SETTLE_PURSUIT_DT_S`` (a trust region: it cannot jump through a twisted pose). After
+        each, every limb is solved from two more starts (its joints at zero and negated) and
         takes the best optimum: a sequence keeps the branch it starts in
         (:mod:`.limb_branches`).
         """
-        result = self.solve(targets, _SETTLE_DT_S)
-        for _ in range(max_solves - 1):
-            before = result.q
-            result = self.solve(targets, _SETTLE_DT_S)
-            if float(np.max(np.abs(result.q - before))) <= tol_rad:
+        start = self._q_prev.copy()
+        x0 = self._online.x0.copy()
+        candidates = []
+        for dt, max_solves, tol in (
+            (_SETTLE_DT_S, _SETTLE_SOLVES, _SETTLE_TOL_RAD),
+            (_SETTLE_PURSUIT_DT_S, _SETTLE_PURSUIT_SOLVES, max(self.step_tol_rad, _SETTLE_TOL_RAD)),
+        ):
+            self._q_prev = start.copy()
+            self._online.x0[:] = x0
+            self._online.lam_x0[:] = 0.0
+            self._online.lam_g0[:] = 0.0
+            candidates.append(self._settle_from(targets, dt, max_solves, tol))
+        # A point that broke its constraints (fallback) only wins if every candidate did.
+        result = min(candidates, key=lambda r: (r.used_fallback, r.cost))
+        self._online.x0[:] = result.q
+        self._online.lam_x0[:] = 0.0
+        self._online.lam_g0[:] = 0.0
+        self._q_prev = result.q.copy()
+        self._q_prev2 = result.q.copy()
+        return result
+
+    def _settle_from(
+        self, targets: FrameTargets, dt_s: float, max_solves: int, tol_rad: float
+    ) -> SolveResult:
+        """Re-solve one frame from the last command at time step ``dt_s`` until no joint moves
+        by more than ``tol_rad`` (at most ``max_solves``), then the limbs' multi-start."""
+        for k in range(max_solves):
+            before = self._q_prev
+            # A re-solve of one frame, not motion: each starts where the last ended (the
+            # warm start's extrapolation of the last step once threw Poppy's first frames of
+            # CMU 02_08 and 02_10 into twisted poses that failed their constraints).
+            self._q_prev2 = before
+            result = self.solve(targets, dt_s)
+            if k + 1 == max_solves or float(np.max(np.abs(result.q - before))) <= tol_rad:
                 break
         if self._branches is not None:
             # Every limb from its best start: a sequence keeps the branch it starts in.
             q, cost = self._branches.best(self._online, result.q)
             result = dataclasses.replace(result, q=q, cost=cost)
-            self._online.x0[:] = q
-            self._online.lam_x0[:] = 0.0
-            self._online.lam_g0[:] = 0.0
-        self._q_prev = result.q.copy()
-        self._q_prev2 = result.q.copy()
         return result
 
     @staticmethod

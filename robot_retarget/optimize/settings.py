@@ -24,9 +24,11 @@ Cost terms (all summed per frame; one :mod:`.terms` module each):
 - ``w_acceleration``· |(q_t − 2 q_{t−1} + q_{t−2}) / dt²|²         (rad/s²)²
 - ``w_init``        · |q_t − q_init|²                              rad²
 
-Solver options: ``max_iter`` (online SQP iterations), ``offline_max_iter``, ``window`` and
-``overlap`` (offline windows), ``warm_start_step`` (where each online solve starts: the last
-solution moved on by this share of its last step, clipped to the frame's box).
+Solver options: ``max_iter`` (online SQP iterations), ``step_tol_ticks`` (the online SQP stops
+once a step moves no joint by more than this share of the robot's finest servo tick),
+``offline_max_iter``, ``window`` and ``overlap`` (offline windows), ``warm_start_step`` (where
+each online solve starts: the last solution moved on by this share of its last step, clipped to
+the frame's box).
 """
 
 from __future__ import annotations
@@ -56,6 +58,12 @@ _SCALARS: dict[str, tuple[float, float, str]] = {
     "overlap": (2.0, 0.0, "offline window overlap (frames)"),
     "max_iter": (10.0, 1.0, "SQP iterations per online solve"),
     "offline_max_iter": (2.0, 1.0, "SQP iterations per offline window"),
+    "step_tol_ticks": (
+        0.33,
+        0.0,
+        "online SQP stops once its step moves no joint by more than this share of the "
+        "robot's finest servo tick (0: only the cap and the KKT tolerances stop it)",
+    ),
     "warm_start_step": (
         1.0,
         0.0,
@@ -98,6 +106,13 @@ class RetargetSettings:
     # its joint limit); 20 doubled Poppy's worst solves and eval-robot scored the same (OP3
     # 14.15° / 0.234 / 1549, Poppy 3.27° / 0.120 / 1076 on the validation subjects).
     max_iter: int = 10
+    # The online SQP also stops once a step moves no joint by more than a third of the finest
+    # servo tick (a 4096-tick servo: 5.1e-4 rad). Where a limb lags at its velocity limit the
+    # convexified Hessian makes the SQP converge linearly (each step ≈ 0.64 × the last, the
+    # cost flat to 1e-6): Poppy's demo spent 4-10 iterations on 7.5 % of its frames moving
+    # joints by less than a tick. Measured in `bench pipeline` and eval-robot (README, "Live
+    # path").
+    step_tol_ticks: float = 0.33
     offline_max_iter: int = 2
     # Each online solve starts from the last solution moved on by the last step (1.0; 0: from
     # the last solution): on 8 clips of CMU 02 and 07, SQP iterations per frame fell from

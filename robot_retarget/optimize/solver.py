@@ -49,6 +49,9 @@ class SolverSpec:
     hessian: str = "gauss-newton"  # or "exact" (convexified by eigenvalue reflection)
     tol_pr: float = 1e-9  # primal infeasibility at convergence (rad / m)
     tol_du: float = 1e-7  # dual infeasibility (stationarity) at convergence
+    # The SQP stops when a step's largest joint move is at most this (rad); casadi then
+    # reports "Search_Direction_Becomes_Too_Small" (STEP_TOL_STATUS).
+    min_step: float = 1e-12
     compiler: str | None = None  # None: gcc or cc from PATH
     cache_dir: Path | None = None  # None: default_cache_dir()
 
@@ -98,7 +101,7 @@ def _options(spec: SolverSpec) -> dict[str, Any]:
         "max_iter": spec.max_iter,
         "tol_pr": spec.tol_pr,
         "tol_du": spec.tol_du,
-        "min_step_size": 1e-12,
+        "min_step_size": spec.min_step,
         "print_header": False,
         "print_iteration": False,
         "print_status": False,
@@ -157,6 +160,9 @@ def _hessian(spec: SolverSpec, nlp: dict[str, ca.SX]) -> dict[str, Any]:
         return {}
     raise ValueError(f"unknown Hessian {spec.hessian!r}; use 'gauss-newton' or 'exact'")
 
+
+# casadi's status for a solve stopped by ``SolverSpec.min_step``.
+STEP_TOL_STATUS = "Search_Direction_Becomes_Too_Small"
 
 # What casadi raises (with the iterate written) when an nlpsol with ``error_on_fail`` stops
 # without converging; any other error is not a verdict on the solve and propagates.

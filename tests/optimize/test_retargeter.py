@@ -14,7 +14,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robot_retarget.errors import SolveError
-from robot_retarget.optimize import ClipTargets, FrameTargets, Retargeter, SolveStatus
+from robot_retarget.motion.synthetic import demo_motion
+from robot_retarget.optimize import (
+    ClipTargets,
+    FrameTargets,
+    Retargeter,
+    SolveStatus,
+    targets_from_globals,
+)
 from robot_retarget.robot.config import RobotConfig
 
 TwistArmFactory = Callable[[dict[str, float]], RobotConfig]
@@ -260,6 +267,39 @@ def test_a_frame_stopped_at_max_iter_reports_its_count_and_status(
     assert np.all(res.q <= cfg.upper)
 
 
+def test_step_tolerance_is_a_share_of_the_finest_servo_tick(op3_retargeter: Retargeter) -> None:
+    # Every OP3 servo has 4096 ticks per turn; the default stops at a third of one.
+    assert op3_retargeter.settings.step_tol_ticks == pytest.approx(0.33)
+    assert op3_retargeter.step_tol_rad == pytest.approx(0.33 * 2 * math.pi / 4096)
+
+
+def test_frames_stopped_at_the_step_tolerance_stay_within_a_tick(poppy: RobotConfig) -> None:
+    """Poppy following the demo at its velocity limits: where the SQP's steps shrink slowly,
+    the step tolerance ends the solve (STEP_TOL, counted as converged), and every command stays
+    within one servo tick of the same sequence solved to the KKT tolerances."""
+    stopped = Retargeter(poppy, jit=False)
+    full = Retargeter(dataclasses.replace(poppy, retarget={"step_tol_ticks": 0}), jit=False)
+    assert full.step_tol_rad == 0.0
+    rate = poppy.control_rate_hz
+    motion = demo_motion(fps=rate)
+    targets = targets_from_globals(stopped.problem, motion.positions(), motion.global_quats())
+    statuses = []
+    gap = 0.0
+    for t in range(motion.num_frames):
+        a = stopped.solve(targets.frame(t), 1.0 / rate)
+        b = full.solve(targets.frame(t), 1.0 / rate)
+        assert b.status is not SolveStatus.STEP_TOL
+        if a.status is SolveStatus.STEP_TOL:
+            assert a.ok
+            assert a.message == "Search_Direction_Becomes_Too_Small"
+            assert a.iterations is not None
+            assert a.iterations < stopped.settings.max_iter
+        statuses.append(a.status)
+        gap = max(gap, float(np.abs(a.q - b.q).max()))
+    assert statuses.count(SolveStatus.STEP_TOL) >= 0.05 * motion.num_frames
+    assert gap < 2 * math.pi / 4096
+
+
 # --------------------------------------------------------------------------- JIT and cache
 def test_no_compiler_falls_back_to_interpreted_solver(
     twist_arm: RobotConfig, tmp_path: Path, caplog: pytest.LogCaptureFixture
@@ -425,6 +465,35 @@ def test_offline_windows_are_smoother_than_online_on_mocap(
     assert rms_acc(offline.q) < 0.95 * rms_acc(online)
     assert mean_err(offline.q) <= mean_err(online) + 0.1
     assert not offline.used_fallback
+
+
+@pytest.mark.data
+def test_first_frames_settle_inside_their_constraints(
+    shared_data_dir: Path, poppy: RobotConfig
+) -> None:
+    """Poppy's first frame of every clip of CMU 02 and 07 through the shipped network, settled
+    as convert starts: never a fallback. Re-solving without a velocity limit from an
+    extrapolated start threw 02_08, 02_10, 07_06 and 07_12 into twisted poses that broke their
+    twist bounds."""
+    from robot_retarget.motion import load_motion
+    from robot_retarget.pipeline.defaults import default_model_name
+    from robot_retarget.pipeline.step import RetargetStep
+
+    r = Retargeter(poppy, jit=False)
+    step: RetargetStep | None = None
+    clips = sorted((shared_data_dir / "mocap").glob("0[27]/*.bvh"))
+    assert len(clips) >= 10
+    for path in clips:
+        motion = load_motion(path, max_frames=1)
+        if step is None:
+            step = RetargetStep(poppy, default_model_name(), motion.skeleton, retargeter=r)
+        step.set_source(motion.skeleton)
+        step.reset(poppy.init_pose)
+        out = step(motion.local_quats[0], motion.root_pos[0], 0.02, settle=True)
+        assert not out.solve.used_fallback, path.name
+        assert np.all(out.q >= poppy.lower)
+        assert np.all(out.q <= poppy.upper)
+        assert math.isfinite(out.solve.cost)
 
 
 def test_warm_up_keeps_the_state_and_q_prev_overrides_it(op3_retargeter: Retargeter) -> None:

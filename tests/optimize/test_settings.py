@@ -56,6 +56,7 @@ def test_twist_override_for_unmapped_bone_is_unknown() -> None:
         ({"window": 8.5}, "retarget.window"),
         ({"max_iter": 0}, "retarget.max_iter"),
         ({"warm_start_step": -0.5}, "retarget.warm_start_step"),
+        ({"step_tol_ticks": -0.1}, "retarget.step_tol_ticks"),
     ],
 )
 def test_invalid_values(values: dict[str, object], key: str) -> None:
