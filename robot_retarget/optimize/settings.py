@@ -56,7 +56,7 @@ _SCALARS: dict[str, tuple[float, float, str]] = {
     "twist_limit_deg": (100.0, 0.0, "default twist bound α of every bone (deg)"),
     "window": (16.0, 2.0, "offline window length (frames)"),
     "overlap": (2.0, 0.0, "offline window overlap (frames)"),
-    "max_iter": (10.0, 1.0, "SQP iterations per online solve"),
+    "max_iter": (6.0, 1.0, "SQP iterations per online solve"),
     "offline_max_iter": (2.0, 1.0, "SQP iterations per offline window"),
     "step_tol_ticks": (
         0.33,
@@ -102,10 +102,12 @@ class RetargetSettings:
     orientation_overrides: Mapping[str, float] = field(default_factory=dict)
     window: int = 16
     overlap: int = 2
-    # 10, not 20: the frames that reach the cap sit where the cost is flat (a straight limb at
-    # its joint limit); 20 doubled Poppy's worst solves and eval-robot scored the same (OP3
-    # 14.15° / 0.234 / 1549, Poppy 3.27° / 0.120 / 1076 on the validation subjects).
-    max_iter: int = 10
+    # 6, not 20 or 10: the frames that reach the cap sit where the cost is flat (a straight
+    # limb at its joint limit, or lagging at its velocity limit); 20 doubled Poppy's worst
+    # solves, and with the step tolerance below 6 took 9 % off its optimizer's p99 on the demo
+    # (commands within 2.6e-3 rad). eval-robot scored the same at 20, 10 and 6 (at 6, Poppy's
+    # direction and end-effector errors to every digit on all three sets, jerk −1 rad/s³).
+    max_iter: int = 6
     # The online SQP also stops once a step moves no joint by more than a third of the finest
     # servo tick (a 4096-tick servo: 5.1e-4 rad). Where a limb lags at its velocity limit the
     # convexified Hessian makes the SQP converge linearly (each step ≈ 0.64 × the last, the
