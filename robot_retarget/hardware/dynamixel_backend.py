@@ -459,10 +459,13 @@ class DynamixelBackend(JointBackend):
     def _send_now(self, q: FloatArray, ticks: IntArray | None = None) -> FloatArray:
         if ticks is None:
             ticks = self.units.to_ticks(q)
+        # The bookkeeping before the writes, so that a read_state() right after goes out with
+        # the least idle time on the bus between the goal packet and its request.
+        sent = self._rad_from_ticks(ticks)
+        last_q = np.asarray(q, dtype=np.float64).copy()
         for g in self._groups:
             self._write_goals(g, ticks)
-        sent = self._rad_from_ticks(ticks)
-        self._last_q = np.asarray(q, dtype=np.float64).copy()
+        self._last_q = last_q
         return sent
 
     def _ticks_from_rad(self, q: FloatArray) -> IntArray:
@@ -610,16 +613,16 @@ class DynamixelBackend(JointBackend):
         return [first, *(f.result() for f in others)]
 
     def _read_state_raw(self) -> JointState:
-        n = self.config.num_joints
+        slow = self._reads % self._temperature_every == 0
+        self._reads += 1
+        reads = self._read_buses(slow)  # the request first, everything else after the reply
         timer = self.stage_timer
+        if timer is not None:
+            timer.lap("read")
+        n = self.config.num_joints
         ticks = np.zeros(n, dtype=np.int64)
         vel = np.zeros(n)
         load = np.zeros(n)
-        slow = self._reads % self._temperature_every == 0
-        self._reads += 1
-        reads = self._read_buses(slow)
-        if timer is not None:
-            timer.lap("read")
         for g, (errors, data, temperatures) in zip(self._groups, reads, strict=True):
             if temperatures is not None and g.temperature is not None:
                 self._check_faults(g, temperatures[0])
