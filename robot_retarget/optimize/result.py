@@ -27,9 +27,10 @@ class SolveResult:
     the velocity box around the previous command (or moving toward the limits at ≤ v_max when
     the previous command was outside them). ``max_violation`` is the largest violation of the
     *solver's* constraints (twist bound, ground, rad or m) before clipping: 0 when satisfied.
-    ``iterations`` is the SQP's iteration count; None for an online frame that converged (the
-    live path does not read casadi's statistics for it: 15–50 µs per frame; right after a
-    solve, ``Retargeter.online_solver.last_status()`` reads them).
+    ``iterations`` is the SQP's iteration count; None for an online frame that converged to
+    the KKT tolerances (OPTIMAL: the live path does not read casadi's statistics for it, 15–50
+    µs per frame; right after a solve, ``Retargeter.online_solver.last_status()`` reads them).
+    A frame stopped at the step tolerance (STEP_TOL) or the cap reports its count.
     """
 
     status: SolveStatus

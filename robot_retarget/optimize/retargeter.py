@@ -358,7 +358,13 @@ class Retargeter:
         status_text = ""
         if status is not SolveStatus.OPTIMAL:
             iters, status_text = s.last_status()
-            if status is SolveStatus.MAX_ITER and status_text == STEP_TOL_STATUS:
+            # casadi reports the same status at its floor (1e-12): only a chosen tolerance
+            # makes a stop "converged".
+            if (
+                status is SolveStatus.MAX_ITER
+                and status_text == STEP_TOL_STATUS
+                and self.step_tol_rad > 0.0
+            ):
                 status = SolveStatus.STEP_TOL
         self._q_prev2 = self._q_prev
         self._q_prev = q
@@ -388,7 +394,8 @@ class Retargeter:
         ``_SETTLE_PURSUIT_DT_S`` (a trust region: it cannot jump through a twisted pose). After
         each, every limb is solved from two more starts (its joints at zero and negated) and
         takes the best optimum: a sequence keeps the branch it starts in
-        (:mod:`.limb_branches`).
+        (:mod:`.limb_branches`). The result's status, iteration count and solve time are those
+        of the winning start's last solve; its cost, that of the pose returned.
         """
         start = self._q_prev.copy()
         x0 = self._online.x0.copy()

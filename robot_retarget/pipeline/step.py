@@ -152,6 +152,8 @@ class RetargetStep:
         t3 = time.perf_counter()
         self.stats.frames += 1
         self.stats.fallbacks += int(result.used_fallback)
+        # Solves stopped at the iteration cap; those stopped at the step tolerance
+        # (retarget.step_tol_ticks) count as converged, not here.
         self.stats.max_iter += int(result.status.value == "max_iter")
         return StepOutput(
             q=np.asarray(result.q, dtype=np.float64),

@@ -4,10 +4,11 @@ global batch), rank 0 alone writes the run folder, and a run resumes on another 
 The tiny residual run of tests/nn/torchrun_train.py, without the corruption-noise terms
 (their noise is drawn per shard, see robot_retarget.nn.distributed): then a step is the same
 computation on one or two ranks and the weights after 4 Adam steps (lr 1e-3, so each step
-moves a weight by up to ~1e-3) agree to 1e-4, a tenth of one step. Measured: 1.4e-6 on one
-machine, 4.8e-5 on another (2 of 66 and 30 of 5280 weights above 1e-5). The sums run in another
-order on two ranks, and Adam's normalised step turns that float32 noise into up to ~lr for a
-weight whose gradient is nearly zero.
+moves a weight by up to ~1e-3) agree to 1e-4, a tenth of one step: an empirical bound.
+Measured: 1.4e-6 on one machine, 4.8e-5 on another (2 of 66 and 30 of 5280 weights above 1e-5).
+The sums run in another order on two ranks, and Adam's normalised step can turn that float32
+noise into as much as ~lr for a weight whose gradient is nearly zero; a rank training on other
+data moves most weights by ~lr.
 """
 
 from __future__ import annotations

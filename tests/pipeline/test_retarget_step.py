@@ -9,7 +9,7 @@ from hypothesis.extra.numpy import arrays
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.nn.inference import OnlineRetargeter, load_model
-from robot_retarget.optimize import Retargeter, SolveStatus, targets_from_rotations
+from robot_retarget.optimize import Retargeter, targets_from_rotations
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.runtime.copy import FastCopyRetargeter
@@ -25,7 +25,7 @@ def test_step_output_is_inside_the_limits(step: RetargetStep, demo: HumanMotion)
         assert np.all(out.q <= step.config.upper)
         assert np.all(np.abs(out.q - prev) <= step.config.max_velocity * dt + 1e-12)
         np.testing.assert_allclose(np.linalg.norm(out.root_quat), 1.0, atol=1e-9)
-        assert out.solve.status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER)
+        assert not out.solve.used_fallback
         assert all(t_s >= 0 for t_s in out.times_s)
         prev = out.q
     assert step.stats.frames == 20
