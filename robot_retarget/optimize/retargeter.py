@@ -47,7 +47,6 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_models import servo_model
 
 _CONSTRAINT_TOL = 1e-6  # twist (rad) / ground (m) violation still called "satisfied"
-_MIN_STEP_FLOOR = 1e-12  # the smallest SQP step that still counts as progress (rad)
 _NO_GROUND = 1e9  # lower bound for foot heights when the root height is unknown (m)
 # A settling solve's time step (s): its velocity box opens to the joint limits and the
 # smoothness terms (∝ 1/dt², 1/dt⁴) vanish, so repeated solves converge to the frame's optimum.
@@ -152,7 +151,7 @@ class Retargeter:
             max_iter=self.settings.max_iter if max_iter is None else max_iter,
             tol_pr=tol_pr,
             tol_du=tol_du,
-            min_step=max(min_step, _MIN_STEP_FLOOR),
+            min_step=min_step,
             jit=jit,
             compiler=self._compiler,
             cache_dir=self._cache_dir,
@@ -213,9 +212,14 @@ class Retargeter:
         """
         q0 = self.config.init_pose if q is None else q
         start = check_array("start pose", q0, (self.num_joints,)).copy()
-        self._q_prev = start
-        self._q_prev2 = start.copy()
-        self._online.x0[:] = np.clip(start, self.lower, self.upper)
+        self._restart(start, start.copy(), np.clip(start, self.lower, self.upper))
+
+    def _restart(self, q_prev: FloatArray, q_prev2: FloatArray, x0: FloatArray) -> None:
+        """The history (last two commands) and a cold start of the next solve at ``x0``: no
+        multipliers carried over."""
+        self._q_prev = q_prev
+        self._q_prev2 = q_prev2
+        self._online.x0[:] = x0
         self._online.lam_x0[:] = 0.0
         self._online.lam_g0[:] = 0.0
 
@@ -225,10 +229,7 @@ class Retargeter:
         dirs = self.bone_directions(self.config.init_pose)
         for _ in range(frames):
             self.solve(FrameTargets(directions=dirs), 1.0 / self.config.control_rate_hz)
-        self._q_prev, self._q_prev2 = saved[0], saved[1]
-        self._online.x0[:] = saved[2]
-        self._online.lam_x0[:] = 0.0
-        self._online.lam_g0[:] = 0.0
+        self._restart(*saved)
 
     # ----------------------------------------------------------------- numeric FK helpers
     def bone_directions(self, q: npt.ArrayLike) -> FloatArray:
@@ -358,8 +359,8 @@ class Retargeter:
         status_text = ""
         if status is not SolveStatus.OPTIMAL:
             iters, status_text = s.last_status()
-            # casadi reports the same status at its floor (1e-12): only a chosen tolerance
-            # makes a stop "converged".
+            # casadi reports the same status at its floor (solver.MIN_STEP_FLOOR): only a
+            # chosen tolerance makes a stop "converged".
             if (
                 status is SolveStatus.MAX_ITER
                 and status_text == STEP_TOL_STATUS
@@ -404,18 +405,11 @@ class Retargeter:
             (_SETTLE_DT_S, _SETTLE_SOLVES, _SETTLE_TOL_RAD),
             (_SETTLE_PURSUIT_DT_S, _SETTLE_PURSUIT_SOLVES, max(self.step_tol_rad, _SETTLE_TOL_RAD)),
         ):
-            self._q_prev = start.copy()
-            self._online.x0[:] = x0
-            self._online.lam_x0[:] = 0.0
-            self._online.lam_g0[:] = 0.0
+            self._restart(start.copy(), start.copy(), x0)
             candidates.append(self._settle_from(targets, dt, max_solves, tol))
         # A point that broke its constraints (fallback) only wins if every candidate did.
         result = min(candidates, key=lambda r: (r.used_fallback, r.cost))
-        self._online.x0[:] = result.q
-        self._online.lam_x0[:] = 0.0
-        self._online.lam_g0[:] = 0.0
-        self._q_prev = result.q.copy()
-        self._q_prev2 = result.q.copy()
+        self._restart(result.q.copy(), result.q.copy(), result.q)
         return result
 
     def _settle_from(

@@ -37,6 +37,8 @@ import casadi as ca
 
 from robot_retarget.casadi_jit import CompiledFunction, default_cache_dir, load_or_jit
 
+MIN_STEP_FLOOR = 1e-12  # the smallest SQP step that still counts as progress (rad)
+
 
 @dataclass(frozen=True)
 class SolverSpec:
@@ -49,9 +51,9 @@ class SolverSpec:
     hessian: str = "gauss-newton"  # or "exact" (convexified by eigenvalue reflection)
     tol_pr: float = 1e-9  # primal infeasibility at convergence (rad / m)
     tol_du: float = 1e-7  # dual infeasibility (stationarity) at convergence
-    # The SQP stops when a step's largest joint move is at most this (rad); casadi then
-    # reports "Search_Direction_Becomes_Too_Small" (STEP_TOL_STATUS).
-    min_step: float = 1e-12
+    # The SQP stops when a step's largest joint move is at most this (rad, never below
+    # MIN_STEP_FLOOR); casadi then reports "Search_Direction_Becomes_Too_Small" (STEP_TOL_STATUS).
+    min_step: float = 0.0
     compiler: str | None = None  # None: gcc or cc from PATH
     cache_dir: Path | None = None  # None: default_cache_dir()
 
@@ -101,7 +103,7 @@ def _options(spec: SolverSpec) -> dict[str, Any]:
         "max_iter": spec.max_iter,
         "tol_pr": spec.tol_pr,
         "tol_du": spec.tol_du,
-        "min_step_size": spec.min_step,
+        "min_step_size": max(spec.min_step, MIN_STEP_FLOOR),
         "print_header": False,
         "print_iteration": False,
         "print_status": False,
