@@ -7,6 +7,7 @@ joints are independent: a limb's branch can be chosen, or a limit found, per gro
 from __future__ import annotations
 
 from collections.abc import Sequence
+from collections.abc import Set as AbstractSet
 
 import numpy as np
 import numpy.typing as npt
@@ -33,11 +34,13 @@ def joints_above(config: RobotConfig, frame: str) -> set[int]:
 
 
 def coupled_groups(
-    config: RobotConfig, segments: Sequence[SegmentFrames]
+    config: RobotConfig, segments: Sequence[SegmentFrames], held: AbstractSet[int] = frozenset()
 ) -> tuple[tuple[list[int], ...], tuple[npt.NDArray[np.int64], ...]]:
-    """Segments grouped by shared joints (union-find), with each group's joint indices."""
+    """Segments grouped by shared joints (union-find), with each group's joint indices;
+    joints in ``held`` (e.g. a spine every limb hangs from) neither couple segments nor belong
+    to a group."""
     deps = [
-        set().union(*(joints_above(config, f) for f in (*starts, *ends)))
+        set().union(*(joints_above(config, f) for f in (*starts, *ends))) - held
         for starts, ends in segments
     ]
     group_of = list(range(len(segments)))

@@ -26,9 +26,9 @@ import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.array_types import FloatArray
+from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.errors import SolveError
-from robot_retarget.optimize.chains import coupled_groups
+from robot_retarget.optimize.chains import coupled_groups, joints_above
 from robot_retarget.optimize.formulation import FOOT_ROWS, TWIST_ROWS, RobotProblem
 from robot_retarget.optimize.limb_branches import LimbBranches
 from robot_retarget.optimize.limits import project_sequence, velocity_box
@@ -42,7 +42,13 @@ from robot_retarget.optimize.solver import (
     SolverSpec,
     build_solver,
 )
-from robot_retarget.optimize.targets import ClipTargets, FrameTargets, check_array, check_dt
+from robot_retarget.optimize.targets import (
+    ClipTargets,
+    FrameTargets,
+    check_array,
+    check_dt,
+    spans_trunk,
+)
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_models import servo_model
 
@@ -175,7 +181,18 @@ class Retargeter:
         """Multi-starts of every limb (≥ 2 bones sharing joints) on a twin of the online
         solver; None when the robot has no such limb."""
         segments = [((b.start_frame,), (b.end_frame,)) for b in self.problem.bones]
-        bone_groups, joint_groups = coupled_groups(self.config, segments)
+        # A robot's spine (the joints below the bone that spans the trunk) would couple both
+        # arms, the head and itself into one group, whose joints zeroed or negated together are
+        # no start for any one arm (Poppy: one group of 15 joints). The limbs hang from it.
+        spine = set().union(
+            *(
+                joints_above(self.config, f)
+                for b in self.problem.bones
+                if spans_trunk(b.canonical, b.canonical_end)
+                for f in (b.start_frame, b.end_frame)
+            )
+        )
+        bone_groups, joint_groups = coupled_groups(self.config, segments, held=spine)
         limbs = tuple(
             j for g, j in zip(bone_groups, joint_groups, strict=True) if len(g) >= 2 and j.size >= 2
         )
@@ -183,6 +200,11 @@ class Retargeter:
             return None
         twin = self._build(1, "daqp", jit, hessian="exact")
         return LimbBranches(twin, self._init_static(twin, 1), limbs, self.lower, self.upper)
+
+    @property
+    def limbs(self) -> tuple[IntArray, ...]:
+        """Joint indices of each limb the first frame's multi-start solves on its own."""
+        return () if self._branches is None else self._branches.limbs
 
     @property
     def jit_used(self) -> bool:

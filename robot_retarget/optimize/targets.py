@@ -123,6 +123,25 @@ def _unit_rows(v: FloatArray, fallback: FloatArray) -> FloatArray:
     return np.where(ok, v / np.where(ok, n, 1.0), fallback)
 
 
+# A bone from the root to the top of the spine (Spine2, where the shoulders hang, or above)
+# spans the whole trunk: its target is the torso line, hip midpoint → shoulder midpoint (the
+# trunk frame's own up, and the torso eval-robot scores), not the performer's Hips → Neck
+# joints. Those two lines meet at 0° on the canonical rest skeleton but 10–11° apart on the CMU
+# rigs (their Hips joint sits behind the hip midpoint): Poppy's spine, following Hips → Neck,
+# leaned its chest 8° off the performer's (ideal targets, CMU 02/05/13; 2.7° on the torso line).
+# A robot with a rigid trunk (OP3) cannot move the bone, so its commands do not change.
+_TRUNK_TOP = frozenset({"Spine2", "Neck", "Head"})
+
+
+def spans_trunk(canonical: str, canonical_end: str) -> bool:
+    """True for a bone from the root to the top of the spine: its target is the torso line."""
+    return canonical == CANONICAL_JOINTS[0] and canonical_end in _TRUNK_TOP
+
+
+def _trunk_bones(problem: RobotProblem) -> list[int]:
+    return [k for k, b in enumerate(problem.bones) if spans_trunk(b.canonical, b.canonical_end)]
+
+
 def targets_from_rotations(
     problem: RobotProblem,
     skeleton: Skeleton,
@@ -176,7 +195,11 @@ def targets_from_globals(
     ends = [CANONICAL_JOINTS.index(b.canonical_end) for b in problem.bones]
     carriers = [b.carrier_joint for b in problem.bones]
     rest_axes = np.array([b.rest_axis for b in problem.bones])
-    dirs = _unit_rows(np.einsum("tij,tbj->tbi", m, pos[:, ends] - pos[:, starts]), rest_axes)
+    vectors = pos[:, ends] - pos[:, starts]
+    hips = 0.5 * (pos[:, Joint.LeftUpLeg] + pos[:, Joint.RightUpLeg])
+    shoulders = 0.5 * (pos[:, Joint.LeftArm] + pos[:, Joint.RightArm])
+    vectors[:, _trunk_bones(problem)] = (shoulders - hips)[:, None]
+    dirs = _unit_rows(np.einsum("tij,tbj->tbi", m, vectors), rest_axes)
     normals_c = np.array([problem.canonical_to_root.T @ b.rest_normal for b in problem.bones])
     carried = quat.rotate(glob[:, carriers], normals_c[None])  # (T, B, 3) canonical
     normals = _unit_rows(np.einsum("tij,tbj->tbi", m, carried), rest_axes)
@@ -233,8 +256,10 @@ class FrameTargetBuilder:
         nb = len(bones)
         hips = 0.5 * (chain[Joint.LeftUpLeg] + chain[Joint.RightUpLeg])
         shoulders = 0.5 * (chain[Joint.LeftArm] + chain[Joint.RightArm])
+        bone_rows = chain[ends] - chain[starts]
+        bone_rows[_trunk_bones(problem)] = shoulders - hips
         rows = [
-            chain[ends] - chain[starts],
+            bone_rows,
             (chain[Joint.LeftUpLeg] - chain[Joint.RightUpLeg])[None],  # hip axis
             (shoulders - hips)[None],  # trunk
         ]

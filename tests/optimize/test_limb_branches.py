@@ -81,3 +81,16 @@ def test_settle_finds_the_other_elbow_branch(op3_retargeter: Retargeter) -> None
     assert settled.cost < 0.1 * plain  # what is left: the weak pull toward the init pose
     arms = [names.index(n) for n in ("l_sho_pitch", "l_sho_roll", "l_el", "r_el")]
     np.testing.assert_allclose(settled.q[arms], goal[arms], atol=1e-3)
+
+
+def test_poppy_limbs_hang_from_its_spine(poppy: RobotConfig) -> None:
+    """The spine moves every bone above the hips, so grouping by shared joints alone made one
+    15-joint group of both arms, the head and the spine; the multi-start's limbs leave the
+    spine out: each arm and each leg on its own joints."""
+    r = Retargeter(poppy)
+    names = sorted(sorted(poppy.joints[i].name for i in limb) for limb in r.limbs)
+    arms = [sorted(f"{s}_{j}" for j in ("shoulder_y", "shoulder_x", "arm_z", "elbow_y"))
+            for s in ("l", "r")]  # fmt: skip
+    legs = [sorted(f"{s}_{j}" for j in ("hip_x", "hip_z", "hip_y", "knee_y", "ankle_y"))
+            for s in ("l", "r")]  # fmt: skip
+    assert names == sorted(arms + legs)

@@ -212,3 +212,35 @@ def test_frame_builder_rejects_bad_input(problem: RobotProblem) -> None:
     bad = Skeleton(("a", "b"), (-1, 0), np.zeros((2, 3)))
     with pytest.raises(SolveError, match="canonical skeleton"):
         FrameTargetBuilder(problem, bad)
+
+
+@pytest.mark.parametrize("robot", ["op3", "poppy"])
+def test_the_trunk_bone_follows_the_torso_line_not_the_neck_joint(
+    robot: str, request: pytest.FixtureRequest
+) -> None:
+    """A rig whose Hips joint sits behind the hip midpoint (as the CMU conversions' do, by
+    10-11°) leans its Hips → Neck line; the trunk bone's target is still the torso line, which
+    in the trunk frame is the robot's up, in every frame and both paths."""
+    config: RobotConfig = request.getfixturevalue(robot)
+    problem = RobotProblem(config)
+    offsets = default_canonical_skeleton().offsets.copy()
+    offsets[Joint.Spine] += [0.0, 0.0, -0.06]  # the spine starts 6 cm behind the hips
+    skeleton = default_canonical_skeleton().with_offsets(offsets)
+    rng = np.random.default_rng(3)
+    q = quat.from_rotation_vector(rng.normal(0.0, 0.4, (5, 22, 3)))
+    k = [b.canonical for b in problem.bones].index("Hips")
+    up = np.asarray(config.up_axis, dtype=np.float64)
+    clip = targets_from_rotations(problem, skeleton, q)
+    np.testing.assert_allclose(clip.directions[:, k], np.tile(up, (5, 1)), atol=1e-12)
+    build = FrameTargetBuilder(problem, skeleton)
+    for t in range(5):
+        np.testing.assert_allclose(build(q[t]).directions[k], up, atol=1e-12)
+    # The Hips → Neck joints themselves lean off that line in the trunk frame.
+    pos, _ = forward_kinematics(skeleton, q, None)
+    neck = pos[:, Joint.Neck] - pos[:, Joint.Hips]
+    torso = 0.5 * (pos[:, Joint.LeftArm] + pos[:, Joint.RightArm] - pos[:, Joint.LeftUpLeg]
+                   - pos[:, Joint.RightUpLeg])  # fmt: skip
+    cos = (
+        np.sum(neck * torso, axis=1) / np.linalg.norm(neck, axis=1) / np.linalg.norm(torso, axis=1)
+    )
+    assert np.degrees(np.arccos(cos)).min() > 3.0
