@@ -152,6 +152,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="agnostic2d: playback speed factors of training windows, drawn log-uniformly "
         "(default 1,1: unchanged; e.g. 0.8,1.25)",
     )
+    parser.add_argument(
+        "--arm-mix-probability",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="agnostic2d: chance, per arm of a training window, that it takes the arm of "
+        "another random window (default 0)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -169,10 +177,10 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     if args.model == "agnostic2d":
         return _run_agnostic2d(args)
-    if args.mirror_probability != 0.0 or args.speed_range != "1,1":
+    if args.mirror_probability != 0.0 or args.speed_range != "1,1" or args.arm_mix_probability:
         raise TrainArgumentError(
-            f"--mirror-probability and --speed-range augment agnostic2d's windows; {args.model} "
-            "does not use them (drop them, or pass --model agnostic2d)"
+            "--mirror-probability, --speed-range and --arm-mix-probability augment agnostic2d's "
+            f"windows; {args.model} does not use them (drop them, or pass --model agnostic2d)"
         )
     subjects = tuple(s for s in args.val_subjects.split(",") if s)
     robots = tuple(r for r in args.robots.split(",") if r)
@@ -277,16 +285,19 @@ def _command_line() -> str:
     return "python launch.py " + shlex.join(sys.argv[1:]) if sys.argv[1:] else ""
 
 
-def _motion_augmentation(mirror_probability: float, speed_range: str) -> MotionAugmentation:
+def _motion_augmentation(
+    mirror_probability: float, speed_range: str, arm_mix_probability: float = 0.0
+) -> MotionAugmentation:
     from robot_retarget.nn.motion_augmentation import MotionAugmentation
 
     try:
         low, high = (float(v) for v in speed_range.split(","))
-        return MotionAugmentation(mirror_probability, (low, high))
+        return MotionAugmentation(mirror_probability, (low, high), arm_mix_probability)
     except ValueError as exc:
         raise TrainArgumentError(
-            f"--mirror-probability {mirror_probability} / --speed-range {speed_range!r}: {exc}; "
-            "use a probability in [0, 1] and LOW,HIGH with 0 < LOW ≤ HIGH, e.g. 0.8,1.25"
+            f"--mirror-probability {mirror_probability} / --speed-range {speed_range!r} / "
+            f"--arm-mix-probability {arm_mix_probability}: {exc}; use probabilities in [0, 1] "
+            "and LOW,HIGH with 0 < LOW ≤ HIGH, e.g. 0.8,1.25"
         ) from exc
 
 
@@ -307,7 +318,9 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
             f"--loss-weight {unknown}: agnostic2d's weights are triplet, direction and limb"
         )
     config = KeypointTrainConfig(
-        augment=_motion_augmentation(args.mirror_probability, args.speed_range),
+        augment=_motion_augmentation(
+            args.mirror_probability, args.speed_range, args.arm_mix_probability
+        ),
         triplet_weight=float(weights.get("triplet", 0.1)),
         direction_weight=float(weights.get("direction", 1.0)),
         limb_weight=float(weights.get("limb", 0.0)),

@@ -144,6 +144,7 @@ class TwoViewSampler:
         # A window at the fastest speed reads this many source frames.
         need = self.augment.source_frames(window_frames, self.augment.speed[1])
         self.clips = [c for c in dataset.clips if c.num_frames >= need]
+        self._donors = [c for c in dataset.clips if c.num_frames >= window_frames]
         if not self.clips:
             raise KeypointTrainError(f"no training clip has {need} frames; use --window")
         self.window_frames = window_frames
@@ -166,7 +167,9 @@ class TwoViewSampler:
             clip = self.clips[int(rng.choice(len(self.clips), p=self._p))]
             if self.augment.active:
                 # One motion per window, the same in both views (the triplet loss's positive).
-                clip = augmented_window(clip, self.window_frames, rng, self.augment)
+                clip = augmented_window(
+                    clip, self.window_frames, rng, self.augment, donors=self._donors
+                )
                 start = 0
             else:  # the batches of checkpoints trained before augmentation existed
                 start = int(rng.integers(0, clip.num_frames - self.window_frames + 1))

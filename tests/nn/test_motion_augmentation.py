@@ -1,4 +1,5 @@
-"""Training-window augmentation: mirroring and playback speed keep exact 3D ground truth."""
+"""Training-window augmentation: mirroring, playback speed and arm mixing keep exact 3D ground
+truth."""
 
 from __future__ import annotations
 
@@ -13,7 +14,11 @@ from hypothesis import strategies as st
 from robot_retarget.cli.train_cmd import TrainArgumentError, _motion_augmentation
 from robot_retarget.nn.agnostic2d_training import TwoViewSampler
 from robot_retarget.nn.dataset import Clip, MotionDataset
-from robot_retarget.nn.motion_augmentation import MotionAugmentation, augmented_window
+from robot_retarget.nn.motion_augmentation import (
+    ARM_JOINTS,
+    MotionAugmentation,
+    augmented_window,
+)
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, default_canonical_skeleton
 from robot_retarget.skeleton.mirror import mirror_rotations
 
@@ -114,3 +119,45 @@ def test_train_flags_are_checked() -> None:
         with pytest.raises(TrainArgumentError, match="--speed-range"):
             _motion_augmentation(mirror, speed)
     assert dataclasses.replace(MotionAugmentation(), mirror_probability=0.0).active is False
+    assert _motion_augmentation(0.0, "1,1", 0.5).active
+    with pytest.raises(TrainArgumentError, match="--arm-mix-probability"):
+        _motion_augmentation(0.0, "1,1", 1.5)
+
+
+def _where_from(window: np.ndarray, donor: Clip) -> int | None:
+    """The start of the donor window ``window`` (T, k, 4) was cut from, or None."""
+    frames = window.shape[0]
+    for start in range(donor.num_frames - frames + 1):
+        if np.array_equal(donor.local_quats[start : start + frames][:, : window.shape[1]], window):
+            return start
+    return None
+
+
+def test_mixed_arms_come_whole_from_donor_windows() -> None:
+    """Probability 1: each arm (shoulder to hand) is one donor window's, frame for frame; every
+    other joint and the root are the clip's own slice."""
+    clip, donor = _clip(120, 0), _clip(90, 7)
+    aug = MotionAugmentation(0.0, (1.0, 1.0), arm_mix_probability=1.0)
+    w = augmented_window(clip, 40, np.random.default_rng(4), aug, donors=(donor,))
+    start = int(w.name.split("@")[1])
+    arms = [j for joints in ARM_JOINTS for j in joints]
+    rest = [j for j in range(_J) if j not in arms]
+    np.testing.assert_allclose(
+        w.local_quats[:, rest], clip.local_quats[start : start + 40][:, rest]
+    )
+    np.testing.assert_allclose(w.root_pos, clip.root_pos[start : start + 40])
+    for joints in ARM_JOINTS:
+        got = w.local_quats[:, list(joints)]
+        assert not np.allclose(got, clip.local_quats[start : start + 40][:, list(joints)])
+        donor_arm = dataclasses.replace(donor, local_quats=donor.local_quats[:, list(joints)])
+        assert _where_from(got, donor_arm) is not None
+
+
+def test_arm_mixing_needs_donors_and_a_probability() -> None:
+    aug = MotionAugmentation(0.0, (1.0, 1.0), arm_mix_probability=1.0)
+    with pytest.raises(ValueError, match="donor"):
+        augmented_window(_clip(), 40, np.random.default_rng(0), aug)
+    with pytest.raises(ValueError, match="a window needs"):
+        augmented_window(_clip(), 40, np.random.default_rng(0), aug, donors=(_clip(30, 1),))
+    with pytest.raises(ValueError, match="arm mix probability"):
+        MotionAugmentation(arm_mix_probability=-0.1)
