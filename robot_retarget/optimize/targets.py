@@ -205,7 +205,6 @@ def targets_from_globals(
     normals = _unit_rows(np.einsum("tij,tbj->tbi", m, carried), rest_axes)
     ee = None
     if end_effectors and problem.ee_frames:
-        hips = 0.5 * (pos[:, Joint.LeftUpLeg] + pos[:, Joint.RightUpLeg])
         idx = [CANONICAL_JOINTS.index(name) for name, _ in problem.ee_frames]
         rel = (pos[:, idx] - hips[:, None]) * scale
         ee = problem.hip_center + np.einsum("tij,tej->tei", m, rel)
