@@ -47,7 +47,7 @@ from robot_retarget.optimize.targets import (
     FrameTargets,
     check_array,
     check_dt,
-    spans_trunk,
+    trunk_bones,
 )
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_models import servo_model
@@ -184,12 +184,12 @@ class Retargeter:
         # A robot's spine (the joints below the bone that spans the trunk) would couple both
         # arms, the head and itself into one group, whose joints zeroed or negated together are
         # no start for any one arm (Poppy: one group of 15 joints). The limbs hang from it.
+        bones = self.problem.bones
         spine = set().union(
             *(
                 joints_above(self.config, f)
-                for b in self.problem.bones
-                if spans_trunk(b.canonical, b.canonical_end)
-                for f in (b.start_frame, b.end_frame)
+                for k in trunk_bones(self.problem)
+                for f in (bones[k].start_frame, bones[k].end_frame)
             )
         )
         bone_groups, joint_groups = coupled_groups(self.config, segments, held=spine)

@@ -138,7 +138,8 @@ def spans_trunk(canonical: str, canonical_end: str) -> bool:
     return canonical == CANONICAL_JOINTS[0] and canonical_end in _TRUNK_TOP
 
 
-def _trunk_bones(problem: RobotProblem) -> list[int]:
+def trunk_bones(problem: RobotProblem) -> list[int]:
+    """Indices of the bones that span the trunk (:func:`spans_trunk`)."""
     return [k for k, b in enumerate(problem.bones) if spans_trunk(b.canonical, b.canonical_end)]
 
 
@@ -198,7 +199,7 @@ def targets_from_globals(
     vectors = pos[:, ends] - pos[:, starts]
     hips = 0.5 * (pos[:, Joint.LeftUpLeg] + pos[:, Joint.RightUpLeg])
     shoulders = 0.5 * (pos[:, Joint.LeftArm] + pos[:, Joint.RightArm])
-    vectors[:, _trunk_bones(problem)] = (shoulders - hips)[:, None]
+    vectors[:, trunk_bones(problem)] = (shoulders - hips)[:, None]
     dirs = _unit_rows(np.einsum("tij,tbj->tbi", m, vectors), rest_axes)
     normals_c = np.array([problem.canonical_to_root.T @ b.rest_normal for b in problem.bones])
     carried = quat.rotate(glob[:, carriers], normals_c[None])  # (T, B, 3) canonical
@@ -256,7 +257,7 @@ class FrameTargetBuilder:
         hips = 0.5 * (chain[Joint.LeftUpLeg] + chain[Joint.RightUpLeg])
         shoulders = 0.5 * (chain[Joint.LeftArm] + chain[Joint.RightArm])
         bone_rows = chain[ends] - chain[starts]
-        bone_rows[_trunk_bones(problem)] = shoulders - hips
+        bone_rows[trunk_bones(problem)] = shoulders - hips
         rows = [
             bone_rows,
             (chain[Joint.LeftUpLeg] - chain[Joint.RightUpLeg])[None],  # hip axis
