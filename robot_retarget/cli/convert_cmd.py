@@ -67,7 +67,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--max-frames", type=int, help="convert only the first N frames")
     parser.add_argument(
-        "--keypoint-model", help="2D keypoint input: the keypoint model's .npz (default: shipped)"
+        "--keypoint-model",
+        help="2D keypoint input: the keypoint model, a runtime .npz or a shipped name "
+        "(default: agnostic2d_clip, which sees a second ahead of each frame; agnostic2d: the "
+        "causal one stream runs)",
     )
     parser.add_argument(
         "--keypoint-fps",

@@ -92,7 +92,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "elevation (robot_retarget.evaluation.keypoints_2d)",
     )
     parser.add_argument(
-        "--keypoint-model", default=None, help="--input 2d: keypoint model .npz (default: shipped)"
+        "--keypoint-model",
+        default=None,
+        help="--input 2d: the causal keypoint model of the stream rows, a runtime .npz "
+        "(default: the shipped agnostic2d); also the clip rows' unless --clip-keypoint-model",
+    )
+    parser.add_argument(
+        "--clip-keypoint-model",
+        default=None,
+        help="--input 2d: the keypoint model of the clip rows (convert), a runtime .npz, causal "
+        "or centred (default: --keypoint-model if given, else the shipped agnostic2d_clip)",
     )
     parser.add_argument(
         "--cache-dir",
@@ -117,6 +126,8 @@ def _overrides(items: list[str]) -> dict[str, float]:
 def run(args: argparse.Namespace) -> int:
     if args.one_euro is not None and args.corrupt is None:
         raise SystemExit("eval-robot: --one-euro smooths the live loop of --corrupt; add --corrupt")
+    if (args.keypoint_model or args.clip_keypoint_model) and args.input != "2d":
+        raise SystemExit("eval-robot: the keypoint models lift --input 2d; add --input 2d")
     if args.raw_positions and args.corrupt is None:
         raise SystemExit(
             "eval-robot: --raw-positions is about the live source of --corrupt; add --corrupt"
@@ -219,15 +230,25 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
 
 def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int:
     """``--input 2d``: the clips from 3D and from 2D keypoints per held-out view."""
+    from robot_retarget.errors import RetargetError
     from robot_retarget.evaluation.keypoints_2d import evaluate_2d, markdown_2d
     from robot_retarget.evaluation.robot.runner import pipeline_runner
     from robot_retarget.runtime.agnostic2d import load_keypoint_model
 
+    stream_model = load_keypoint_model(args.keypoint_model)
+    if stream_model.centered:
+        raise RetargetError(
+            f"--keypoint-model {args.keypoint_model}: it looks ahead (centered), so it cannot "
+            "lift the stream rows; pass it as --clip-keypoint-model"
+        )
     report = evaluate_2d(
         config,
         clips,
         _label(model, args),
-        load_keypoint_model(args.keypoint_model),
+        stream_model,
+        clip_keypoint_model=load_keypoint_model(
+            args.clip_keypoint_model or args.keypoint_model, whole_clip=True
+        ),
         pipeline=pipeline_runner(config, model, foot_lock=args.foot_lock),
         max_frames=args.max_frames,
         progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True),

@@ -49,7 +49,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--keypoint-model",
-        help="udp-keypoints: the 2D keypoint model's runtime .npz (default: the shipped one)",
+        help="udp-keypoints: the 2D keypoint model's runtime .npz (default: the shipped causal "
+        "agnostic2d; a model trained with centered=true looks ahead and cannot stream)",
     )
     parser.add_argument("--backend", choices=("sim", "dynamixel"), default="sim")
     add_port_argument(parser)

@@ -344,12 +344,11 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
     def show(p: KeypointProgress) -> None:
         if args.quiet:
             return
-        val = (
-            f" val {p.validation['direction_error_deg_causal']:.2f}° causal"
-            f" / {p.validation['direction_error_deg_clip']:.2f}° clip"
-            if p.validation
-            else ""
-        )
+        val = ""
+        if p.validation:
+            causal = p.validation.get("direction_error_deg_causal")  # absent: a centred model
+            val = " val " + ("" if causal is None else f"{causal:.2f}° causal / ")
+            val += f"{p.validation['direction_error_deg_clip']:.2f}° clip"
         _progress_line(
             p.step,
             p.total_steps,

@@ -175,17 +175,22 @@ def evaluate_2d(
     model: str,
     keypoint_model: Agnostic2DRuntime,
     *,
+    clip_keypoint_model: Agnostic2DRuntime | None = None,
     max_frames: int | None = None,
     noise: EstimatorNoise | None = None,
     seed: int = 0,
     pipeline: PipelineFn | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> Eval2DReport:
-    """Score every clip from 3D and from 2D through every held-out view (module docstring)."""
+    """Score every clip from 3D and from 2D through every held-out view (module docstring);
+    ``keypoint_model`` lifts the ``stream`` rows, ``clip_keypoint_model`` (if given, else the
+    same) the ``clip`` rows."""
     run = pipeline or pipeline_runner(config, model)
     scorer = Scorer(config)
     noise = noise or EstimatorNoise()
-    report = Eval2DReport(config.name, model, keypoint_model.name, len(clips))
+    lifters = {True: keypoint_model, False: clip_keypoint_model or keypoint_model}
+    names = dict.fromkeys(m.name for m in (lifters[False], lifters[True]))
+    report = Eval2DReport(config.name, model, " / ".join(names), len(clips))
     rows = report.rows
     for k, (name, path) in enumerate(clips):
         truth = load_motion(path, max_frames=max_frames)
@@ -196,7 +201,8 @@ def evaluate_2d(
                 rng = np.random.default_rng([seed, k, int(elevation), int(azimuth)])
                 seq = keypoints_of(truth, cam, rng, noise)
                 for causal, label in ((False, "2d clip"), (True, "2d stream")):
-                    lifted = world_heading(lift_keypoints(seq, keypoint_model, causal=causal), cam)
+                    lifter = lifters[causal]
+                    lifted = world_heading(lift_keypoints(seq, lifter, causal=causal), cam)
                     own = scorer.score_lifted(truth, lifted)
                     rows.setdefault(f"lifted, {label[3:]}", InputScore()).add(*own)
                     scores = scorer.score_run(truth, run(lifted))

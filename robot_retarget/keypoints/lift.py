@@ -85,7 +85,8 @@ def load_keypoint_motion(
     max_frames: int | None = None,
 ) -> LiftedKeypoints:
     """A keypoint file or folder (robot_retarget.sources.keypoints) lifted by the keypoint
-    model (None: the shipped one), non-causally, as ``convert`` does."""
+    model (None: the shipped one for whole clips, which looks ahead), non-causally, as
+    ``convert`` does."""
     from robot_retarget.runtime.agnostic2d import load_keypoint_model
     from robot_retarget.sources.keypoints import load_keypoints
 
@@ -95,5 +96,5 @@ def load_keypoint_motion(
             seq.xy[:max_frames], seq.confidence[:max_frames], seq.valid[:max_frames], seq.fps,
             seq.source,
         )  # fmt: skip
-    motion = lift_keypoints(seq, load_keypoint_model(model), causal=False)
+    motion = lift_keypoints(seq, load_keypoint_model(model, whole_clip=True), causal=False)
     return LiftedKeypoints(motion, int((~body_seen(seq)).sum()), seq.missing_fraction)

@@ -52,9 +52,12 @@ class Agnostic2DWeights:
     skeleton: tuple[Conv, Conv, Conv]
     view: tuple[Conv, Conv, Conv]
     head: tuple[Conv, Conv]
+    centered: bool = False  # the motion convolutions look ahead: whole clips only (convert)
 
     def arrays(self) -> dict[str, np.ndarray]:
         out: dict[str, np.ndarray] = {"dilations": np.asarray(self.dilations, dtype=np.float64)}
+        if self.centered:  # absent in causal files, as before this option
+            out["centered"] = np.ones(1)
         for group in ("motion", "skeleton", "view", "head"):
             for i, (w, b) in enumerate(getattr(self, group)):
                 out[f"{group}.{i}.0"] = np.asarray(w, dtype=np.float32)
@@ -82,16 +85,22 @@ class Agnostic2DWeights:
                 f"layer counts motion {len(motion)} (dilations {len(dil)}), skeleton "
                 f"{len(skel)}/3, view {len(view)}/3, head {len(head)}/2"
             )
+        centered = "centered" in arrays and bool(np.asarray(arrays["centered"]).ravel()[0])
         return cls(
             dil,
             motion,
             (skel[0], skel[1], skel[2]),
             (view[0], view[1], view[2]),
             (head[0], head[1]),
+            centered,
         )
 
 
 _KEYPOINT_MIRROR = swap_index(list(FLIP_PAIRS), NUM_KEYPOINTS)
+_LOOKS_AHEAD = (
+    "this keypoint model looks ahead (trained with centered=true): it lifts whole clips "
+    "(convert), not a live stream; stream with a causal one such as the shipped agnostic2d"
+)
 
 
 def _lrelu(x: FloatArray) -> FloatArray:
@@ -155,16 +164,26 @@ class Agnostic2DRuntime:
         k = self.weights.motion[0][0].shape[2]
         return 1 + (k - 1) * int(sum(self.weights.dilations))
 
+    @property
+    def centered(self) -> bool:
+        """Whether the model looks ahead (whole clips only: ``convert``, never ``stream``)."""
+        return self.weights.centered
+
     def run_features(self, features: FloatArray, *, causal: bool) -> FloatArray:
         """Features (T, 51) → local rotations (T, 22, 4)."""
         w = self.weights
+        if causal and w.centered:
+            raise ValueError(_LOOKS_AHEAD)
         x = np.asarray(features, dtype=np.float64).T  # (C, T)
         t = x.shape[1]
         h = x
         for (kern, bias), d_f in zip(w.motion, w.dilations, strict=True):
             d = int(d_f)
             k = kern.shape[2]
-            hp = np.concatenate([np.zeros((h.shape[0], (k - 1) * d)), h], axis=1)
+            span = (k - 1) * d
+            before, after = (span // 2, span // 2) if w.centered else (span, 0)
+            c = h.shape[0]
+            hp = np.concatenate([np.zeros((c, before)), h, np.zeros((c, after))], axis=1)
             acc = np.repeat(bias[:, None], t, axis=1)
             for i in range(k):
                 acc = acc + kern[:, :, i] @ hp[:, i * d : i * d + t]
@@ -203,7 +222,10 @@ class Agnostic2DRuntime:
     def online(self, *, mirror_average: bool = True) -> KeypointStep:
         """The causal step for ``stream``; ``mirror_average`` (default) also steps the mirrored
         image, as ``run_clip(causal=True, mirror_average=True)``: twice the arithmetic, 0.7°
-        less lifted-pose error on the validation clips (11.6° → 10.9°)."""
+        less lifted-pose error on the validation clips (11.6° → 10.9°). A centred model has
+        no step (ModelLoadError)."""
+        if self.centered:
+            raise ModelLoadError(_LOOKS_AHEAD, path=self.path, model=self.name)
         if mirror_average:
             return MirrorAveragedStep(self.weights)
         return Agnostic2DStep(self.weights)
@@ -231,6 +253,8 @@ class _StreamSteps:
     little more than the cost of one)."""
 
     def __init__(self, weights: Agnostic2DWeights, streams: int) -> None:
+        if weights.centered:
+            raise ValueError(_LOOKS_AHEAD)
         self._w = weights
         self._streams = streams
         self._layers: list[tuple[FloatArray, FloatArray, int]] = []
@@ -357,19 +381,33 @@ def load_agnostic2d(path: str | os.PathLike[str]) -> Agnostic2DRuntime:
         metadata=dict(meta.get("metadata", {})),
     )
     try:  # wrong shapes fail here, at load, not in the live loop
-        Agnostic2DStep(weights).step_features(np.zeros(FEATURES_PER_FRAME))
+        if weights.centered:
+            model.run_features(np.zeros((2, FEATURES_PER_FRAME)), causal=False)
+        else:
+            Agnostic2DStep(weights).step_features(np.zeros(FEATURES_PER_FRAME))
     except (ValueError, IndexError) as exc:
         raise ModelLoadError(f"runtime weights do not fit {ARCHITECTURE}: {exc}", path=p) from None
     return model
 
 
-SHIPPED_KEYPOINT_MODEL = (
-    Path(__file__).resolve().parent.parent / "data" / "checkpoints" / "agnostic2d.npz"
-)
+_CHECKPOINTS = Path(__file__).resolve().parent.parent / "data" / "checkpoints"
+SHIPPED_KEYPOINT_MODEL = _CHECKPOINTS / "agnostic2d.npz"
+"""The causal keypoint model: ``stream`` (and the 2D demo)."""
+SHIPPED_CLIP_KEYPOINT_MODEL = _CHECKPOINTS / "agnostic2d_clip.npz"
+"""The centred keypoint model: ``convert`` (whole clips; it sees a second ahead of each frame)."""
+CLIP_MODEL_NAME = "agnostic2d_clip"
 
 
-def load_keypoint_model(name_or_path: str | os.PathLike[str] | None = None) -> Agnostic2DRuntime:
-    """The shipped keypoint model (None or "agnostic2d") or a runtime ``.npz`` by path."""
-    if name_or_path is None or str(name_or_path) == ARCHITECTURE:
+def load_keypoint_model(
+    name_or_path: str | os.PathLike[str] | None = None, *, whole_clip: bool = False
+) -> Agnostic2DRuntime:
+    """A keypoint model by name — ``agnostic2d`` (the shipped causal one) or
+    ``agnostic2d_clip`` (the shipped centred one) — or a runtime ``.npz`` by path; None: the
+    shipped one for the use (``whole_clip``: ``convert``'s, else ``stream``'s)."""
+    if name_or_path is None:
+        name_or_path = CLIP_MODEL_NAME if whole_clip else ARCHITECTURE
+    if str(name_or_path) == ARCHITECTURE:
         return load_agnostic2d(SHIPPED_KEYPOINT_MODEL)
+    if str(name_or_path) == CLIP_MODEL_NAME:
+        return load_agnostic2d(SHIPPED_CLIP_KEYPOINT_MODEL)
     return load_agnostic2d(name_or_path)

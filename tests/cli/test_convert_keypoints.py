@@ -72,3 +72,24 @@ def test_broken_keypoint_file_is_reported(tmp_path: Path, capsys: object) -> Non
     assert "broken.jsonl" in err
     assert "frame 1" in err
     assert not (tmp_path / "b.npz").exists()
+
+
+def test_convert_lifts_with_the_centred_model_unless_told(tmp_path: Path) -> None:
+    """convert's default keypoint model is the shipped centred one (it sees ahead of each
+    frame); ``--keypoint-model agnostic2d`` lifts with the causal one stream runs."""
+    from robot_retarget.keypoints.lift import lift_keypoints, load_keypoint_motion
+    from robot_retarget.runtime.agnostic2d import load_keypoint_model
+    from robot_retarget.sources.keypoints import load_keypoints
+
+    folder = FIXTURES / "openpose_body25"
+    seq = load_keypoints(folder)
+    for name, whole_clip in ((None, True), ("agnostic2d", False)):
+        lifted = load_keypoint_motion(folder, model=name).motion
+        expected = lift_keypoints(seq, load_keypoint_model(whole_clip=whole_clip))
+        np.testing.assert_array_equal(lifted.local_quats, expected.local_quats)
+    outs = [tmp_path / "clip.npz", tmp_path / "causal.npz"]
+    assert _run(str(folder), "--robot", "op3", "--out", str(outs[0])) == 0
+    flags = ("--keypoint-model", "agnostic2d")
+    assert _run(str(folder), "--robot", "op3", "--out", str(outs[1]), *flags) == 0
+    q = [np.asarray(RobotTrajectory.read(p).q) for p in outs]
+    assert not np.allclose(q[0], q[1])

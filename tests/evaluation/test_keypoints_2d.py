@@ -30,7 +30,14 @@ TIME_LIMIT_S = 300
 
 def test_every_row_and_elevation_within_limits() -> None:
     config = load_robot_config("op3")
-    report = evaluate_2d(config, [("tiny_walk", CLIP)], "copy-scaled", load_keypoint_model())
+    report = evaluate_2d(
+        config,
+        [("tiny_walk", CLIP)],
+        "copy-scaled",
+        load_keypoint_model(),
+        clip_keypoint_model=load_keypoint_model(whole_clip=True),
+    )
+    assert report.keypoint_model == "agnostic2d_clip / agnostic2d"  # clip rows' / stream rows'
     for label in ("2d clip", "2d stream"):
         for e in ELEVATIONS_DEG:
             row = report.rows[f"{label} @ {e:g}°"]
@@ -110,3 +117,35 @@ def test_frames_without_a_body_hold_the_last_seen_pose() -> None:
     nobody = KeypointSequence(seq.xy, seq.confidence, np.zeros_like(valid), seq.fps, "x")
     with pytest.raises(MotionFormatError, match="nobody to follow"):
         lift_keypoints(nobody, load_keypoint_model())
+
+
+def test_the_clip_rows_use_the_clip_model_and_stream_rows_the_causal_one() -> None:
+    """Lifting the clip rows with the causal model instead changes only the clip rows."""
+    config = load_robot_config("op3")
+    both = [
+        evaluate_2d(config, [("tiny_walk", CLIP)], "copy-scaled", load_keypoint_model(),
+                    clip_keypoint_model=clip, max_frames=60)
+        for clip in (None, load_keypoint_model(whole_clip=True))
+    ]  # fmt: skip
+    assert both[0].keypoint_model == "agnostic2d"
+    for key in ("lifted, stream", "2d stream"):
+        assert both[0].rows[key].direction_deg == both[1].rows[key].direction_deg
+    for key in ("lifted, clip", "2d clip"):
+        assert both[0].rows[key].direction_deg != both[1].rows[key].direction_deg
+
+
+def test_eval_robot_refuses_keypoint_models_it_cannot_use(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The keypoint options need --input 2d; a centred model cannot lift the stream rows."""
+    from robot_retarget.cli.main import main
+    from robot_retarget.runtime.agnostic2d import SHIPPED_CLIP_KEYPOINT_MODEL
+
+    for option in ("--keypoint-model", "--clip-keypoint-model"):
+        with pytest.raises(SystemExit, match="add --input 2d"):
+            main(["eval-robot", option, "agnostic2d"])
+    (tmp_path / "99").mkdir()
+    (tmp_path / "99" / "99_01.bvh").write_bytes(CLIP.read_bytes())
+    args = ["eval-robot", "--input", "2d", "--data", str(tmp_path)]
+    assert main([*args, "--keypoint-model", str(SHIPPED_CLIP_KEYPOINT_MODEL)]) == 1
+    assert "looks ahead (centered)" in capsys.readouterr().err

@@ -46,6 +46,42 @@ def test_runtime_equals_torch(model: Agnostic2D, causal: bool) -> None:
         assert _angle(online, ref) < 1e-4
 
 
+def test_a_centred_model_looks_ahead_equals_torch_and_round_trips(tmp_path: Path) -> None:
+    """``centered=True`` (convert's model): the runtime equals torch on whole clips, a frame's
+    answer depends on the frames after it (a causal model's does not), the flag survives the
+    file, and every causal use is refused with the reason."""
+    torch.manual_seed(1)
+    centred = Agnostic2D(channels=24, static_hidden=16, head_hidden=32, centered=True).eval()
+    causal = Agnostic2D(channels=24, static_hidden=16, head_hidden=32).eval()
+    x = torch.randn(1, 50, 51)
+    with torch.no_grad():
+        ref = quat.from_matrix(rotation_6d_to_matrix(centred(x, False)[0])[0].double().numpy())
+    rt = load_agnostic2d(
+        save_agnostic2d(Agnostic2DRuntime(centred.export_weights()), tmp_path / "c.npz")
+    )
+    assert rt.centered
+    assert not Agnostic2DRuntime(causal.export_weights()).centered
+    feats = x[0].double().numpy()
+    assert _angle(rt.run_features(feats, causal=False), ref) < 1e-4
+    later = feats.copy()
+    later[30:] += 1.0  # only frames from 30 on change
+    # The causal model pooled causally (its static codes pooled over the clip would see ahead).
+    for m, pooled_causally in ((rt, False), (Agnostic2DRuntime(causal.export_weights()), True)):
+        now = m.run_features(feats, causal=pooled_causally)[20:30]
+        moved = _angle(m.run_features(later, causal=pooled_causally)[20:30], now)
+        assert (moved > 1e-3) == (m is rt)
+    with pytest.raises(ValueError, match="looks ahead"):
+        centred(x, True)
+    with pytest.raises(ValueError, match="looks ahead"):
+        rt.run_features(feats, causal=True)
+    with pytest.raises(ModelLoadError, match=r"looks ahead.*stream with a causal one"):
+        rt.online()
+    with pytest.raises(ValueError, match="looks ahead"):
+        Agnostic2DStep(rt.weights)
+    with pytest.raises(ValueError, match="odd kernel"):
+        Agnostic2D(kernel=4, centered=True)
+
+
 def test_file_round_trip_and_errors(model: Agnostic2D, tmp_path: Path) -> None:
     rt = Agnostic2DRuntime(model.export_weights(), data_hash="abc")
     path = save_agnostic2d(rt, tmp_path / "m.npz")
@@ -64,28 +100,46 @@ def test_file_round_trip_and_errors(model: Agnostic2D, tmp_path: Path) -> None:
         load_agnostic2d(tmp_path / "missing.npz")
 
 
-def test_shipped_keypoint_model_loads() -> None:
+def test_shipped_keypoint_models_load() -> None:
+    """The causal model streams; the centred one (convert's) lifts whole clips only."""
     rt = load_keypoint_model()
     assert rt.metadata.get("validation_subjects")
     assert rt.checkpoint_sha256
+    assert not rt.centered
     step = rt.online()
     q = step.step(np.full((17, 2), np.nan), np.zeros(17, dtype=bool))
     np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
+    clip = load_keypoint_model(whole_clip=True)
+    assert clip.centered
+    assert clip.name == "agnostic2d_clip"
+    assert clip.metadata["validation_subjects"] == rt.metadata["validation_subjects"]
+    assert "centered=true" in clip.metadata["command"]
+    assert load_keypoint_model("agnostic2d_clip").checkpoint_sha256 == clip.checkpoint_sha256
+    assert (
+        load_keypoint_model("agnostic2d", whole_clip=True).checkpoint_sha256 == rt.checkpoint_sha256
+    )
+    with pytest.raises(ModelLoadError, match="looks ahead"):
+        clip.online()
+    xy = np.random.default_rng(3).uniform(200, 700, (12, 17, 2))
+    q = clip.run_clip(xy, np.ones((12, 17), dtype=bool), causal=False, mirror_average=True)
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
 
 
-def test_shipped_runtime_is_the_shipped_checkpoint(tmp_path: Path) -> None:
-    """agnostic2d.npz is ``export agnostic2d.pt``: the same weights and the checkpoint's hash."""
+@pytest.mark.parametrize("name", ["agnostic2d", "agnostic2d_clip"])
+def test_shipped_runtime_is_the_shipped_checkpoint(name: str, tmp_path: Path) -> None:
+    """Each shipped .npz is ``export`` of its .pt: the same weights and the checkpoint's hash."""
     import hashlib
 
     from robot_retarget.nn.agnostic2d_training import export_keypoint_checkpoint
-    from robot_retarget.runtime.agnostic2d import SHIPPED_KEYPOINT_MODEL
 
-    pt = SHIPPED_KEYPOINT_MODEL.with_suffix(".pt")
+    shipped = load_keypoint_model(name)
+    assert shipped.path is not None
+    pt = shipped.path.with_suffix(".pt")
     fresh = load_agnostic2d(export_keypoint_checkpoint(pt, tmp_path / "a.npz", force=False))
-    shipped = load_keypoint_model()
     assert shipped.checkpoint_sha256 == hashlib.sha256(pt.read_bytes()).hexdigest()
-    for name, a in fresh.weights.arrays().items():
-        np.testing.assert_array_equal(a, shipped.weights.arrays()[name], err_msg=name)
+    assert fresh.centered == shipped.centered
+    for key, a in fresh.weights.arrays().items():
+        np.testing.assert_array_equal(a, shipped.weights.arrays()[key], err_msg=key)
 
 
 @settings(max_examples=60)

@@ -18,6 +18,10 @@ Adaptations for a live robot:
 - The static encoders pool over time causally (the mean of the frames so far) for ``stream``,
   or over the whole clip for ``convert`` (``causal=False``): the one difference between the two
   variants, both trained (each batch draws one). Their per-frame layers are 1 × 1 convolutions.
+- ``centered=True`` makes a model for ``convert`` only: each motion convolution is centred on
+  its frame ((k − 1)·d/2 frames before and after it), so a frame's code also sees the second
+  after it, and the static encoders always pool over the whole clip. Such a model cannot run
+  frame by frame (``causal=True`` is refused).
 - Input: :mod:`robot_retarget.keypoints.normalize` features (x, y, visible per COCO-17 point):
   missing points are masked, the network learned them from dropouts.
 
@@ -77,8 +81,11 @@ class Agnostic2D(nn.Module):
         view_code: int = 8,
         head_hidden: int = 128,
         dropout: float = 0.1,
+        centered: bool = False,
     ) -> None:
         super().__init__()
+        if centered and (kernel - 1) % 2:
+            raise ValueError(f"a centred motion encoder needs an odd kernel, got {kernel}")
         self.channels = channels
         self.kernel = kernel
         self.dilations = tuple(int(d) for d in dilations)
@@ -87,6 +94,7 @@ class Agnostic2D(nn.Module):
         self.view_code = view_code
         self.head_hidden = head_hidden
         self.dropout = dropout
+        self.centered = bool(centered)
         ins = [FEATURES_PER_FRAME] + [channels] * (len(self.dilations) - 1)
         self.motion = nn.ModuleList(
             nn.Conv1d(c, channels, kernel, dilation=d)
@@ -107,6 +115,7 @@ class Agnostic2D(nn.Module):
             "view_code": self.view_code,
             "head_hidden": self.head_hidden,
             "dropout": self.dropout,
+            "centered": self.centered,
         }
 
     @property
@@ -114,14 +123,18 @@ class Agnostic2D(nn.Module):
         return 1 + (self.kernel - 1) * sum(self.dilations)
 
     def encode_motion(self, features: Tensor) -> Tensor:
-        """(B, T, 51) → motion code (B, C, T), causal."""
+        """(B, T, 51) → motion code (B, C, T): causal, or centred on each frame."""
         h = features.transpose(1, 2)
         for conv, d in zip(self.motion, self.dilations, strict=True):
-            h = nnf.leaky_relu(conv(nnf.pad(h, ((self.kernel - 1) * d, 0))), LEAKY_SLOPE)
+            span = (self.kernel - 1) * d
+            pad = (span // 2, span // 2) if self.centered else (span, 0)
+            h = nnf.leaky_relu(conv(nnf.pad(h, pad)), LEAKY_SLOPE)
         return h
 
     def forward(self, features: Tensor, causal: bool = True) -> tuple[Tensor, Tensor]:
         """Features (B, T, 51) → 6D rotations (B, T, 22, 6) and the motion code (B, C, T)."""
+        if causal and self.centered:
+            raise ValueError("a centred model looks ahead: run it with causal=False (convert)")
         motion = self.encode_motion(features)
         x = features.transpose(1, 2)
         z = torch.cat([motion, self.skeleton(x, causal), self.view(x, causal)], dim=1)
@@ -142,6 +155,7 @@ class Agnostic2D(nn.Module):
 
         return Agnostic2DWeights(
             dilations=tuple(float(d) for d in self.dilations),
+            centered=self.centered,
             motion=tuple(conv(c) for c in self.motion),  # type: ignore[arg-type]
             skeleton=(
                 conv(self.skeleton.layer1),
