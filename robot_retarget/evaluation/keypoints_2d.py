@@ -8,8 +8,9 @@ elevation −10…45°, distance and focal length at random, never these on thes
 1. **3D** — the clip through the full pipeline (network → optimizer → safety), as ``convert``;
 2. **2D** — the clip resampled to a 30 fps camera, projected through the view with
    estimator-like noise (robot_retarget.keypoints.synthetic: pixel jitter, dropouts, bursts,
-   hidden face points; its own random draws), lifted by the keypoint model — non-causally as
-   ``convert`` does (``clip``) and causally as ``stream`` does (``stream``) — and sent through
+   hidden face points; its own random draws), lifted as ``convert`` does (``clip``: the centred
+   keypoint model, whole-clip codes) and as ``stream`` does (``stream``: the causal model, codes
+   of the frames so far) — and sent through
    the same pipeline. The camera's azimuth is turned back on the root (a calibrated camera
    knows it); the scores below do not depend on heading anyway.
 

@@ -2,7 +2,9 @@
 
 Same arithmetic as the torch model (robot_retarget.nn.models.agnostic2d; tested to float32
 rounding): whole clips with :meth:`Agnostic2DRuntime.run_clip` (``causal=False`` pools the
-static encoders over the whole clip: ``convert``), and one frame at a time with
+static encoders over the whole clip: ``convert``, which runs the shipped centred model
+``agnostic2d_clip``, whose motion convolutions also see the frames after each one), and one
+frame at a time (causal models only) with
 :class:`MirrorAveragedStep` (causal, the image and its mirror: ``stream``) or
 :class:`Agnostic2DStep` (the image alone). Both take COCO-17 keypoints with their visibility
 and return the 22 canonical local rotations (w-x-y-z), the root's in the camera's heading frame.

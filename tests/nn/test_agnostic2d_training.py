@@ -87,3 +87,26 @@ def test_train_command_writes_loadable_checkpoints(shared_data_dir: Path, tmp_pa
     with pytest.raises(train_cmd.TrainArgumentError, match="triplet, direction and limb"):
         train_cmd.run(parser.parse_args(["--model", "agnostic2d", "--out", str(out),
                                          "--loss-weight", "bone=1"]))  # fmt: skip
+
+
+@pytest.mark.data
+def test_a_centred_model_trains_on_whole_windows_and_is_chosen_by_them(
+    shared_data_dir: Path, tmp_path: Path
+) -> None:
+    """``--model-config centered=true``: never run causally (that would raise), validated and
+    chosen by the whole-window error alone; its runtime looks ahead."""
+    parser = argparse.ArgumentParser()
+    train_cmd.configure(parser)
+    out = tmp_path / "run"
+    args = parser.parse_args(
+        ["--model", "agnostic2d", "--data", str(shared_data_dir / "mocap"), "--out", str(out),
+         "--steps", "4", "--batch-size", "2", "--window", "32", "--val-every", "2",
+         "--max-frames", "240", "--quiet", "--model-config", "channels=16",
+         "--model-config", "static_hidden=8", "--model-config", "head_hidden=16",
+         "--model-config", "centered=true"]
+    )  # fmt: skip
+    assert train_cmd.run(args) == 0
+    model, payload = load_keypoint_checkpoint(out / "best.pt")
+    assert model.centered
+    assert set(payload["metadata"]["validation"]) == {"direction_error_deg_clip"}
+    assert load_agnostic2d(out / "best.npz").centered
