@@ -62,19 +62,25 @@ def test_loader_processes_render_the_same_batches_in_order(shared_data_dir: Path
         assert torch.equal(e.targets, g.targets)
 
 
-@pytest.mark.data
-def test_train_command_writes_loadable_checkpoints(shared_data_dir: Path, tmp_path: Path) -> None:
+def _tiny_run(data: Path, out: Path, *extra: str) -> argparse.ArgumentParser:
+    """Train a tiny keypoint model for 4 steps into ``out``; the parser for further runs."""
     parser = argparse.ArgumentParser()
     train_cmd.configure(parser)
-    out = tmp_path / "run"
     args = parser.parse_args(
-        ["--model", "agnostic2d", "--data", str(shared_data_dir / "mocap"), "--out", str(out),
+        ["--model", "agnostic2d", "--data", str(data / "mocap"), "--out", str(out),
          "--steps", "4", "--batch-size", "2", "--window", "32", "--val-every", "2",
          "--max-frames", "240", "--quiet", "--model-config", "channels=16",
-         "--model-config", "static_hidden=8", "--model-config", "head_hidden=16",
-         "--loss-weight", "limb=2", "--loader-workers", "1"]
+         "--model-config", "static_hidden=8", "--model-config", "head_hidden=16", *extra]
     )  # fmt: skip
     assert train_cmd.run(args) == 0
+    return parser
+
+
+@pytest.mark.data
+def test_train_command_writes_loadable_checkpoints(shared_data_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    extra = ("--loss-weight", "limb=2", "--loader-workers", "1")
+    parser = _tiny_run(shared_data_dir, out, *extra)
     model, payload = load_keypoint_checkpoint(out / "best.pt")
     assert payload["metadata"]["validation_subjects"] == ["06", "08", "12"]
     assert json.loads((out / "config.json").read_text())["limb_weight"] == 2.0
@@ -95,17 +101,8 @@ def test_a_centred_model_trains_on_whole_windows_and_is_chosen_by_them(
 ) -> None:
     """``--model-config centered=true``: never run causally (that would raise), validated and
     chosen by the whole-window error alone; its runtime looks ahead."""
-    parser = argparse.ArgumentParser()
-    train_cmd.configure(parser)
     out = tmp_path / "run"
-    args = parser.parse_args(
-        ["--model", "agnostic2d", "--data", str(shared_data_dir / "mocap"), "--out", str(out),
-         "--steps", "4", "--batch-size", "2", "--window", "32", "--val-every", "2",
-         "--max-frames", "240", "--quiet", "--model-config", "channels=16",
-         "--model-config", "static_hidden=8", "--model-config", "head_hidden=16",
-         "--model-config", "centered=true"]
-    )  # fmt: skip
-    assert train_cmd.run(args) == 0
+    _tiny_run(shared_data_dir, out, "--model-config", "centered=true")
     model, payload = load_keypoint_checkpoint(out / "best.pt")
     assert model.centered
     assert set(payload["metadata"]["validation"]) == {"direction_error_deg_clip"}
