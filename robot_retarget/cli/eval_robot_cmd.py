@@ -265,7 +265,8 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
             }
             for k, r in report.rows.items()
         }
-        print(json.dumps({"robot": report.robot, "model": report.model, "rows": rows}, indent=2))
+        head = {"robot": report.robot, "model": report.model}
+        print(json.dumps({**head, "keypoint_model": report.keypoint_model, "rows": rows}, indent=2))
     else:
         print(markdown_2d(report))
     return 0

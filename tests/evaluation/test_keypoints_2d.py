@@ -3,6 +3,7 @@ the limits; and the scorer itself (a robot copying the truth scores better than 
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -149,3 +150,8 @@ def test_eval_robot_refuses_keypoint_models_it_cannot_use(
     args = ["eval-robot", "--input", "2d", "--data", str(tmp_path)]
     assert main([*args, "--keypoint-model", str(SHIPPED_CLIP_KEYPOINT_MODEL)]) == 1
     assert "looks ahead (centered)" in capsys.readouterr().err
+    # Each row set names the model that lifted it: a report says how to reproduce it.
+    assert main([*args, "--model", "copy-scaled", "--max-frames", "40", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["keypoint_model"] == "agnostic2d_clip / agnostic2d"
+    assert report["rows"]["2d clip"]["limit_violations"] == 0
