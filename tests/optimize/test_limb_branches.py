@@ -51,7 +51,9 @@ def test_settle_is_never_worse_than_settling_from_the_start(
     plain = _plain_settle(r, targets, start)
     r.reset(start)
     settled = r.settle(targets)
-    assert settled.cost <= plain + 1e-8
+    # The same optimum reached from two starts: the SQP stops at dual infeasibility 1e-7, so
+    # the costs may differ by ~1e-7 (7.3e-8 at seed 144; ≤ 1e-10 over 299 other seeds).
+    assert settled.cost <= plain + 1e-6
     assert np.all(settled.q >= cfg.lower)
     assert np.all(settled.q <= cfg.upper)
     # The next solve goes on from the settled pose at the velocity limits.
