@@ -246,9 +246,10 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
         clips,
         _label(model, args),
         stream_model,
-        clip_keypoint_model=load_keypoint_model(
-            args.clip_keypoint_model or args.keypoint_model, whole_clip=True
-        ),
+        # --keypoint-model alone lifts both row sets: the file is read once.
+        clip_keypoint_model=stream_model
+        if args.keypoint_model and not args.clip_keypoint_model
+        else load_keypoint_model(args.clip_keypoint_model, whole_clip=True),
         pipeline=pipeline_runner(config, model, foot_lock=args.foot_lock),
         max_frames=args.max_frames,
         progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True),

@@ -408,8 +408,5 @@ def load_keypoint_model(
     shipped one for the use (``whole_clip``: ``convert``'s, else ``stream``'s)."""
     if name_or_path is None:
         name_or_path = CLIP_MODEL_NAME if whole_clip else ARCHITECTURE
-    if str(name_or_path) == ARCHITECTURE:
-        return load_agnostic2d(SHIPPED_KEYPOINT_MODEL)
-    if str(name_or_path) == CLIP_MODEL_NAME:
-        return load_agnostic2d(SHIPPED_CLIP_KEYPOINT_MODEL)
-    return load_agnostic2d(name_or_path)
+    shipped = {ARCHITECTURE: SHIPPED_KEYPOINT_MODEL, CLIP_MODEL_NAME: SHIPPED_CLIP_KEYPOINT_MODEL}
+    return load_agnostic2d(shipped.get(str(name_or_path), name_or_path))

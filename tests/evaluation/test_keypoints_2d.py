@@ -155,3 +155,7 @@ def test_eval_robot_refuses_keypoint_models_it_cannot_use(
     report = json.loads(capsys.readouterr().out)
     assert report["keypoint_model"] == "agnostic2d_clip / agnostic2d"
     assert report["rows"]["2d clip"]["limit_violations"] == 0
+    # --keypoint-model alone lifts both row sets.
+    flags = ["--model", "copy-scaled", "--max-frames", "40", "--json"]
+    assert main([*args, *flags, "--keypoint-model", "agnostic2d"]) == 0
+    assert json.loads(capsys.readouterr().out)["keypoint_model"] == "agnostic2d"
