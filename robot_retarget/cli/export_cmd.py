@@ -2,7 +2,9 @@
 
 ``python launch.py export runs/r6/best.pt --out my_model.npz``; the shipped
 ``robot_retarget/data/checkpoints/default.npz`` is made by
-``python launch.py export robot_retarget/data/checkpoints/default.pt --force``.
+``python launch.py export robot_retarget/data/checkpoints/default.pt --force``. Several
+keypoint-model checkpoints make one ensemble runtime whose answers are averaged (the shipped
+``agnostic2d_clip.npz``, see the README's "Video input").
 """
 
 from __future__ import annotations
@@ -15,7 +17,12 @@ HELP = "Export a trained checkpoint to its numpy runtime (.npz): stream without 
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("checkpoint", help="a .pt checkpoint, a training run folder or a name")
+    parser.add_argument(
+        "checkpoint",
+        nargs="+",
+        help="a .pt checkpoint, a training run folder or a name; several agnostic2d "
+        "checkpoints: one ensemble runtime (answers averaged; --out names it)",
+    )
     parser.add_argument("--out", type=Path, help="runtime file (default: beside it, .npz)")
     parser.add_argument("--force", action="store_true", help="replace an existing file")
 
@@ -27,11 +34,25 @@ def run(args: argparse.Namespace) -> int:
     )
     from robot_retarget.nn.export import export_runtime
 
-    if is_keypoint_checkpoint(args.checkpoint):  # the 2D keypoint model (agnostic2d)
-        src = Path(args.checkpoint)
-        written = export_keypoint_checkpoint(src, args.out, force=args.force)
-        print(f"exported {src} (agnostic2d) → {written} ({written.stat().st_size} bytes)")
+    sources: list[str] = args.checkpoint
+    keypoint = [is_keypoint_checkpoint(c) for c in sources]
+    if len(sources) > 1:
+        if not all(keypoint):
+            others = ", ".join(c for c, k in zip(sources, keypoint, strict=True) if not k)
+            raise SystemExit(
+                f"export: only agnostic2d checkpoints make an ensemble; not one: {others} "
+                "(export a retargeting network's checkpoint on its own)"
+            )
+        if args.out is None:
+            raise SystemExit("export: an ensemble of several checkpoints needs --out FILE.npz")
+    if all(keypoint):  # the 2D keypoint model (agnostic2d), one or an ensemble
+        paths = [Path(c) for c in sources]
+        written = export_keypoint_checkpoint(paths, args.out, force=args.force)
+        kind = "agnostic2d" if len(paths) == 1 else f"agnostic2d, ensemble of {len(paths)}"
+        print(
+            f"exported {', '.join(sources)} ({kind}) → {written} ({written.stat().st_size} bytes)"
+        )
         return 0
-    out, architecture = export_runtime(args.checkpoint, args.out, force=args.force)
-    print(f"exported {args.checkpoint} ({architecture}) → {out} ({out.stat().st_size} bytes)")
+    out, architecture = export_runtime(sources[0], args.out, force=args.force)
+    print(f"exported {sources[0]} ({architecture}) → {out} ({out.stat().st_size} bytes)")
     return 0

@@ -509,24 +509,51 @@ def is_keypoint_checkpoint(path: str | Path) -> bool:
     return isinstance(payload, dict) and payload.get("format") == CHECKPOINT_FORMAT
 
 
-def export_keypoint_checkpoint(checkpoint: Path, out: Path | None, *, force: bool) -> Path:
-    """``export`` for the keypoint model: the checkpoint's runtime ``.npz`` (named after the
-    checkpoint's file, with its sha256), checked by loading it back."""
+def export_keypoint_checkpoint(
+    checkpoints: Path | Sequence[Path], out: Path | None, *, force: bool
+) -> Path:
+    """``export`` for the keypoint model: the runtime ``.npz`` of one checkpoint (named after
+    its file, with its sha256), or of several as one ensemble whose answers are averaged
+    (named after ``out``; each model's file, sha256 and step in ``metadata["ensemble"]``),
+    checked by loading it back."""
     from robot_retarget.errors import MotionFormatError
     from robot_retarget.runtime.agnostic2d import load_agnostic2d
 
-    target = out or checkpoint.with_suffix(".npz")
+    paths = [checkpoints] if isinstance(checkpoints, Path) else list(checkpoints)
+    if not paths:
+        raise ValueError("export needs at least one checkpoint")
+    target = out or paths[0].with_suffix(".npz")
     if target.suffix != ".npz":
         raise MotionFormatError("the runtime file must end in .npz", path=target)
     if target.exists() and not force:
         raise MotionFormatError("already exists; pass --force to replace it", path=target)
-    model, payload = load_keypoint_checkpoint(checkpoint)
+    loaded = [(p, *load_keypoint_checkpoint(p)) for p in paths]
+    digests = [hashlib.sha256(p.read_bytes()).hexdigest() for p in paths]
+    first, model, payload = loaded[0]
+    metadata = dict(payload.get("metadata", {}))
+    if len(loaded) > 1:
+        kinds = {m.centered for _p, m, _pl in loaded}
+        if len(kinds) > 1:
+            raise ModelLoadError(
+                "an ensemble's checkpoints must all be centred (centered=true) or all causal",
+                path=first,
+            )
+        metadata["ensemble"] = [
+            {
+                "checkpoint": p.name,
+                "checkpoint_sha256": digest,
+                "step": pl.get("metadata", {}).get("step"),
+                "validation": pl.get("metadata", {}).get("validation"),
+            }
+            for (p, _m, pl), digest in zip(loaded, digests, strict=True)
+        ]
     runtime = Agnostic2DRuntime(
         model.export_weights(),
-        name=checkpoint.stem,
-        checkpoint_sha256=hashlib.sha256(checkpoint.read_bytes()).hexdigest(),
+        name=first.stem if len(loaded) == 1 else target.stem,
+        checkpoint_sha256=digests[0],
         data_hash=str(payload.get("data_hash", "")),
-        metadata=dict(payload.get("metadata", {})),
+        metadata=metadata,
+        ensemble=tuple(m.export_weights() for _p, m, _pl in loaded[1:]),
     )
     tmp = target.with_name(f".{target.name}.tmp")
     save_agnostic2d(runtime, tmp)

@@ -13,7 +13,10 @@ File format (``.npz``, written by ``train --model agnostic2d``): one array per w
 dotted name (``motion.0.0`` = first motion layer's kernel, ``motion.0.1`` its bias) and
 ``__meta__`` (JSON: ``format``, ``architecture`` = "agnostic2d", ``name``,
 ``checkpoint_sha256``, ``data_hash``, ``metadata``), the conventions of
-:mod:`robot_retarget.runtime.model`.
+:mod:`robot_retarget.runtime.model`. An ensemble (``export`` of several checkpoints, answers
+averaged) is format 2: its first model's arrays as above, model i's (i ≥ 1) under
+``ensemble.i.``, ``members`` (the count) in ``__meta__`` and each model's checkpoint file and
+sha256 in ``metadata["ensemble"]``.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from robot_retarget.skeleton.mirror import mirror_rotations, swap_index
 
 ARCHITECTURE = "agnostic2d"
 FORMAT_VERSION = 1
+ENSEMBLE_FORMAT_VERSION = 2
 _J = len(CANONICAL_JOINTS)
 _SLOPE = 0.2
 Conv = tuple[FloatArray, FloatArray]  # kernel (out, in, k), bias (out,)
@@ -56,38 +60,42 @@ class Agnostic2DWeights:
     head: tuple[Conv, Conv]
     centered: bool = False  # the motion convolutions look ahead: whole clips only (convert)
 
-    def arrays(self) -> dict[str, np.ndarray]:
-        out: dict[str, np.ndarray] = {"dilations": np.asarray(self.dilations, dtype=np.float64)}
+    def arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """Named arrays of the file (``prefix``: an ensemble member's, see the module)."""
+        out: dict[str, np.ndarray] = {
+            f"{prefix}dilations": np.asarray(self.dilations, dtype=np.float64)
+        }
         if self.centered:  # absent in causal files, as before this option
-            out["centered"] = np.ones(1)
+            out[f"{prefix}centered"] = np.ones(1)
         for group in ("motion", "skeleton", "view", "head"):
             for i, (w, b) in enumerate(getattr(self, group)):
-                out[f"{group}.{i}.0"] = np.asarray(w, dtype=np.float32)
-                out[f"{group}.{i}.1"] = np.asarray(b, dtype=np.float32)
+                out[f"{prefix}{group}.{i}.0"] = np.asarray(w, dtype=np.float32)
+                out[f"{prefix}{group}.{i}.1"] = np.asarray(b, dtype=np.float32)
         return out
 
     @classmethod
-    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> Agnostic2DWeights:
+    def from_arrays(cls, arrays: dict[str, np.ndarray], prefix: str = "") -> Agnostic2DWeights:
         def group(name: str) -> tuple[Conv, ...]:
             out = []
             i = 0
-            while f"{name}.{i}.0" in arrays:
-                w = np.asarray(arrays[f"{name}.{i}.0"], dtype=np.float64)
-                b = np.asarray(arrays[f"{name}.{i}.1"], dtype=np.float64)
+            while f"{prefix}{name}.{i}.0" in arrays:
+                w = np.asarray(arrays[f"{prefix}{name}.{i}.0"], dtype=np.float64)
+                b = np.asarray(arrays[f"{prefix}{name}.{i}.1"], dtype=np.float64)
                 out.append((w, b))
                 i += 1
             return tuple(out)
 
-        if "dilations" not in arrays:
-            raise KeyError("dilations")
-        dil = tuple(float(d) for d in np.asarray(arrays["dilations"]).ravel())
+        if f"{prefix}dilations" not in arrays:
+            raise KeyError(f"{prefix}dilations")
+        dil = tuple(float(d) for d in np.asarray(arrays[f"{prefix}dilations"]).ravel())
         motion, skel, view, head = group("motion"), group("skeleton"), group("view"), group("head")
         if len(motion) != len(dil) or len(skel) != 3 or len(view) != 3 or len(head) != 2:
             raise ValueError(
                 f"layer counts motion {len(motion)} (dilations {len(dil)}), skeleton "
                 f"{len(skel)}/3, view {len(view)}/3, head {len(head)}/2"
             )
-        centered = "centered" in arrays and bool(np.asarray(arrays["centered"]).ravel()[0])
+        key = f"{prefix}centered"
+        centered = key in arrays and bool(np.asarray(arrays[key]).ravel()[0])
         return cls(
             dil,
             motion,
@@ -150,9 +158,54 @@ class KeypointStep(Protocol):
         ...
 
 
+def _run_weights(w: Agnostic2DWeights, features: FloatArray, *, causal: bool) -> FloatArray:
+    """One model's answer: features (T, 51) → local rotations (T, 22, 4)."""
+    if causal and w.centered:
+        raise ValueError(_LOOKS_AHEAD)
+    x = np.asarray(features, dtype=np.float64).T  # (C, T)
+    t = x.shape[1]
+    h = x
+    for (kern, bias), d_f in zip(w.motion, w.dilations, strict=True):
+        d = int(d_f)
+        k = kern.shape[2]
+        span = (k - 1) * d
+        before, after = (span // 2, span // 2) if w.centered else (span, 0)
+        c = h.shape[0]
+        hp = np.concatenate([np.zeros((c, before)), h, np.zeros((c, after))], axis=1)
+        acc = np.repeat(bias[:, None], t, axis=1)
+        for i in range(k):
+            acc = acc + kern[:, :, i] @ hp[:, i * d : i * d + t]
+        h = _lrelu(acc)
+    codes = [h]
+    for enc in (w.skeleton, w.view):
+        s = _lrelu(_pointwise(_lrelu(_pointwise(x, enc[0])), enc[1]))
+        if causal:
+            pooled = np.cumsum(s, axis=1) / np.arange(1, t + 1)
+        else:
+            pooled = np.repeat(s.mean(axis=1, keepdims=True), t, axis=1)
+        codes.append(_pointwise(pooled, enc[2]))
+    z = np.concatenate(codes, axis=0)
+    out = _pointwise(_lrelu(_pointwise(z, w.head[0])), w.head[1]).T
+    return rotation_6d_to_quat(out.reshape(t, _J, 6))
+
+
+def mean_rotation(answers: list[FloatArray]) -> FloatArray:
+    """The normalised mean of several (..., 22, 4) answers, each turned to the first one's
+    hemisphere (the chordal mean of rotations a few degrees apart)."""
+    first = answers[0]
+    total = np.array(first, dtype=np.float64)
+    for q in answers[1:]:
+        total += np.where(((first * q).sum(-1) < 0.0)[..., None], -q, q)
+    return quat.normalize(total)
+
+
 @dataclass(frozen=True)
 class Agnostic2DRuntime:
-    """A trained keypoint model ready to run (weights and provenance)."""
+    """A trained keypoint model ready to run (weights and provenance).
+
+    ``ensemble``: further models of the same kind (trained from other seeds) whose answers are
+    averaged with ``weights``' — several models' errors partly cancel. Whole clips only
+    (``convert``): :meth:`online` refuses an ensemble."""
 
     weights: Agnostic2DWeights
     name: str = ARCHITECTURE
@@ -160,11 +213,20 @@ class Agnostic2DRuntime:
     checkpoint_sha256: str = ""
     data_hash: str = ""
     metadata: dict[str, Any] = field(default_factory=dict)
+    ensemble: tuple[Agnostic2DWeights, ...] = ()
+
+    def __post_init__(self) -> None:
+        if any(m.centered != self.weights.centered for m in self.ensemble):
+            raise ValueError("an ensemble's models must all be centred or all causal")
+
+    @property
+    def members(self) -> tuple[Agnostic2DWeights, ...]:
+        """Every model whose answer is averaged: ``weights`` first."""
+        return (self.weights, *self.ensemble)
 
     @property
     def receptive_field(self) -> int:
-        k = self.weights.motion[0][0].shape[2]
-        return 1 + (k - 1) * int(sum(self.weights.dilations))
+        return max(1 + (m.motion[0][0].shape[2] - 1) * int(sum(m.dilations)) for m in self.members)
 
     @property
     def centered(self) -> bool:
@@ -172,35 +234,9 @@ class Agnostic2DRuntime:
         return self.weights.centered
 
     def run_features(self, features: FloatArray, *, causal: bool) -> FloatArray:
-        """Features (T, 51) → local rotations (T, 22, 4)."""
-        w = self.weights
-        if causal and w.centered:
-            raise ValueError(_LOOKS_AHEAD)
-        x = np.asarray(features, dtype=np.float64).T  # (C, T)
-        t = x.shape[1]
-        h = x
-        for (kern, bias), d_f in zip(w.motion, w.dilations, strict=True):
-            d = int(d_f)
-            k = kern.shape[2]
-            span = (k - 1) * d
-            before, after = (span // 2, span // 2) if w.centered else (span, 0)
-            c = h.shape[0]
-            hp = np.concatenate([np.zeros((c, before)), h, np.zeros((c, after))], axis=1)
-            acc = np.repeat(bias[:, None], t, axis=1)
-            for i in range(k):
-                acc = acc + kern[:, :, i] @ hp[:, i * d : i * d + t]
-            h = _lrelu(acc)
-        codes = [h]
-        for enc in (w.skeleton, w.view):
-            s = _lrelu(_pointwise(_lrelu(_pointwise(x, enc[0])), enc[1]))
-            if causal:
-                pooled = np.cumsum(s, axis=1) / np.arange(1, t + 1)
-            else:
-                pooled = np.repeat(s.mean(axis=1, keepdims=True), t, axis=1)
-            codes.append(_pointwise(pooled, enc[2]))
-        z = np.concatenate(codes, axis=0)
-        out = _pointwise(_lrelu(_pointwise(z, w.head[0])), w.head[1]).T
-        return rotation_6d_to_quat(out.reshape(t, _J, 6))
+        """Features (T, 51) → local rotations (T, 22, 4), the members' answers averaged."""
+        answers = [_run_weights(m, features, causal=causal) for m in self.members]
+        return answers[0] if len(answers) == 1 else mean_rotation(answers)
 
     def run_clip(
         self, xy: FloatArray, valid: BoolArray, *, causal: bool, mirror_average: bool = False
@@ -228,6 +264,14 @@ class Agnostic2DRuntime:
         no step (ModelLoadError)."""
         if self.centered:
             raise ModelLoadError(_LOOKS_AHEAD, path=self.path, model=self.name)
+        if self.ensemble:
+            raise ModelLoadError(
+                f"this keypoint model is an ensemble of {len(self.members)} models: it lifts "
+                "whole clips (convert); stream with a single causal one such as the shipped "
+                "agnostic2d",
+                path=self.path,
+                model=self.name,
+            )
         if mirror_average:
             return MirrorAveragedStep(self.weights)
         return Agnostic2DStep(self.weights)
@@ -244,9 +288,7 @@ def mirror_image(xy: FloatArray, valid: BoolArray) -> tuple[FloatArray, BoolArra
 def average_with_mirrored(direct: FloatArray, from_mirrored: FloatArray) -> FloatArray:
     """The mean rotation of ``direct`` and the mirror of the mirrored image's answer (both
     (..., 22, 4)); exactly mirror-symmetric in the image."""
-    back = mirror_rotations(from_mirrored)
-    back = np.where(((direct * back).sum(-1) < 0.0)[..., None], -back, back)
-    return quat.normalize(direct + back)
+    return mean_rotation([direct, mirror_rotations(from_mirrored)])
 
 
 class _StreamSteps:
@@ -348,8 +390,13 @@ def save_agnostic2d(model: Agnostic2DRuntime, path: str | os.PathLike[str]) -> P
     """Write a runtime ``.npz`` (see the module docstring)."""
     out = Path(path)
     arrays = model.weights.arrays()
+    for i, member in enumerate(model.ensemble, start=1):
+        arrays.update(member.arrays(_member_prefix(i)))
     meta = {
-        "format": FORMAT_VERSION,
+        # An ensemble is format 2, so that a version of the package that predates ensembles
+        # refuses it rather than running its first model alone.
+        "format": ENSEMBLE_FORMAT_VERSION if model.ensemble else FORMAT_VERSION,
+        "members": len(model.members),
         "architecture": ARCHITECTURE,
         "name": model.name,
         "checkpoint_sha256": model.checkpoint_sha256,
@@ -363,33 +410,47 @@ def load_agnostic2d(path: str | os.PathLike[str]) -> Agnostic2DRuntime:
     """Read a runtime ``.npz``; ModelLoadError names the file and what is wrong."""
     p = Path(path)
     arrays, meta = read_runtime_npz(p, "keypoint model file")
-    if meta.get("architecture") != ARCHITECTURE or meta.get("format") != FORMAT_VERSION:
+    formats = (FORMAT_VERSION, ENSEMBLE_FORMAT_VERSION)
+    if meta.get("architecture") != ARCHITECTURE or meta.get("format") not in formats:
         raise ModelLoadError(
-            f"not an {ARCHITECTURE} runtime of format {FORMAT_VERSION} (found "
+            f"not an {ARCHITECTURE} runtime of format {' or '.join(map(str, formats))} (found "
             f"{meta.get('architecture')!r}, format {meta.get('format')!r}); the keypoint model "
             "is trained with train --model agnostic2d",
             path=p,
         )
+    count = meta.get("members", 1)
+    if not isinstance(count, int) or count < 1:
+        raise ModelLoadError(f"runtime metadata gives {count!r} members (≥ 1 expected)", path=p)
     try:
-        weights = Agnostic2DWeights.from_arrays(arrays)
+        members = [
+            Agnostic2DWeights.from_arrays(arrays, _member_prefix(i) if i else "")
+            for i in range(count)
+        ]
+        model = Agnostic2DRuntime(
+            members[0],
+            name=str(meta.get("name", p.stem)),
+            path=p,
+            checkpoint_sha256=str(meta.get("checkpoint_sha256", "")),
+            data_hash=str(meta.get("data_hash", "")),
+            metadata=dict(meta.get("metadata", {})),
+            ensemble=tuple(members[1:]),
+        )
     except (KeyError, ValueError) as exc:
         raise ModelLoadError(f"runtime weights do not fit {ARCHITECTURE} ({exc})", path=p) from None
-    model = Agnostic2DRuntime(
-        weights,
-        name=str(meta.get("name", p.stem)),
-        path=p,
-        checkpoint_sha256=str(meta.get("checkpoint_sha256", "")),
-        data_hash=str(meta.get("data_hash", "")),
-        metadata=dict(meta.get("metadata", {})),
-    )
     try:  # wrong shapes fail here, at load, not in the live loop
-        if weights.centered:
-            model.run_features(np.zeros((2, FEATURES_PER_FRAME)), causal=False)
-        else:
-            Agnostic2DStep(weights).step_features(np.zeros(FEATURES_PER_FRAME))
+        for weights in members:
+            if weights.centered:
+                _run_weights(weights, np.zeros((2, FEATURES_PER_FRAME)), causal=False)
+            else:
+                Agnostic2DStep(weights).step_features(np.zeros(FEATURES_PER_FRAME))
     except (ValueError, IndexError) as exc:
         raise ModelLoadError(f"runtime weights do not fit {ARCHITECTURE}: {exc}", path=p) from None
     return model
+
+
+def _member_prefix(i: int) -> str:
+    """Array-name prefix of an ensemble's member ``i`` ≥ 1 (member 0's arrays have none)."""
+    return f"ensemble.{i}."
 
 
 _CHECKPOINTS = Path(__file__).resolve().parent.parent / "data" / "checkpoints"

@@ -34,3 +34,28 @@ def test_export_writes_a_runtime_that_loads(tmp_path: Path) -> None:
 def test_built_in_models_need_no_export() -> None:
     with pytest.raises(ModelLoadError, match="built-in"):
         export_cmd.run(_args("copy"))
+
+
+def test_several_keypoint_checkpoints_export_as_one_ensemble(tmp_path: Path) -> None:
+    """``export A.pt B.pt --out E.npz``: one runtime of both keypoint models; several
+    checkpoints need --out and must all be keypoint models."""
+    import torch
+
+    from robot_retarget.nn.agnostic2d_training import save_keypoint_checkpoint
+    from robot_retarget.nn.models.agnostic2d import Agnostic2D
+    from robot_retarget.runtime.agnostic2d import load_agnostic2d
+
+    pts = []
+    for seed in (0, 1):
+        torch.manual_seed(seed)
+        m = Agnostic2D(channels=16, static_hidden=8, head_hidden=16, centered=True)
+        pts.append(
+            str(save_keypoint_checkpoint(tmp_path / f"k{seed}.pt", m, data_hash="h", metadata={}))
+        )
+    out = tmp_path / "ens.npz"
+    assert export_cmd.run(_args(*pts, "--out", str(out))) == 0
+    assert len(load_agnostic2d(out).members) == 2
+    with pytest.raises(SystemExit, match="needs --out"):
+        export_cmd.run(_args(*pts))
+    with pytest.raises(SystemExit, match=r"only agnostic2d checkpoints.*default\.pt"):
+        export_cmd.run(_args(pts[0], str(CHECKPOINT_DIR / "default.pt"), "--out", str(out)))

@@ -100,6 +100,73 @@ def test_file_round_trip_and_errors(model: Agnostic2D, tmp_path: Path) -> None:
         load_agnostic2d(tmp_path / "missing.npz")
 
 
+def _checkpoint(path: Path, seed: int, *, centered: bool = True) -> Path:
+    from robot_retarget.nn.agnostic2d_training import save_keypoint_checkpoint
+
+    torch.manual_seed(seed)
+    m = Agnostic2D(channels=24, static_hidden=16, head_hidden=32, centered=centered).eval()
+    return save_keypoint_checkpoint(path, m, data_hash="d", metadata={"step": seed})
+
+
+def test_an_ensemble_averages_its_models_and_round_trips(tmp_path: Path) -> None:
+    """``export`` of several checkpoints: one file (format 2) whose answer is the mean of its
+    models' answers, provenance per model; every model loads with its own weights."""
+    from robot_retarget.nn.agnostic2d_training import export_keypoint_checkpoint
+    from robot_retarget.runtime.agnostic2d import mean_rotation
+    from robot_retarget.runtime.npz_file import read_runtime_npz
+
+    pts = [_checkpoint(tmp_path / f"m{i}.pt", i) for i in range(3)]
+    path = export_keypoint_checkpoint(pts, tmp_path / "ens.npz", force=False)
+    ens = load_agnostic2d(path)
+    assert len(ens.members) == 3
+    assert ens.centered
+    assert ens.name == "ens"
+    assert [m["checkpoint"] for m in ens.metadata["ensemble"]] == ["m0.pt", "m1.pt", "m2.pt"]
+    assert read_runtime_npz(path, "x")[1]["format"] == 2
+    singles = [load_agnostic2d(p.with_suffix(".npz")) for p in pts]  # each model's own runtime
+    assert read_runtime_npz(pts[0].with_suffix(".npz"), "x")[1]["format"] == 1
+    xy = np.random.default_rng(5).uniform(200, 700, (30, 17, 2))
+    valid = np.ones((30, 17), dtype=bool)
+    answers = [m.run_clip(xy, valid, causal=False) for m in singles]
+    assert _angle(ens.run_clip(xy, valid, causal=False), mean_rotation(answers)) < 1e-6
+    # The models differ, so the mean is none of them.
+    assert min(_angle(ens.run_clip(xy, valid, causal=False), a) for a in answers) > 1e-3
+    with pytest.raises(ModelLoadError, match="looks ahead"):
+        ens.online()
+
+
+def test_an_ensemble_is_refused_where_it_cannot_run(tmp_path: Path) -> None:
+    """Causal and centred models do not mix; a causal ensemble does not stream; a file whose
+    member is damaged or whose member count is wrong names what is wrong."""
+    from robot_retarget.nn.agnostic2d_training import export_keypoint_checkpoint
+
+    a, b = _checkpoint(tmp_path / "a.pt", 0), _checkpoint(tmp_path / "b.pt", 1, centered=False)
+    with pytest.raises(ModelLoadError, match="all be centred"):
+        export_keypoint_checkpoint([a, b], tmp_path / "mixed.npz", force=False)
+    c = _checkpoint(tmp_path / "c.pt", 2, centered=False)
+    causal = load_agnostic2d(export_keypoint_checkpoint([b, c], tmp_path / "cc.npz", force=False))
+    with pytest.raises(ModelLoadError, match="ensemble of 2 models"):
+        causal.online()
+    q = causal.run_clip(np.full((5, 17, 2), 300.0), np.ones((5, 17), bool), causal=True)
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
+    with np.load(tmp_path / "cc.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    damaged = {k: v for k, v in arrays.items() if k != "ensemble.1.head.1.0"}
+    np.savez(tmp_path / "damaged.npz", **damaged)
+    with pytest.raises(ModelLoadError, match="do not fit agnostic2d"):
+        load_agnostic2d(tmp_path / "damaged.npz")
+    import json
+
+    meta = json.loads(str(arrays["__meta__"]))
+    for members in (0, "2", 3):
+        np.savez(
+            tmp_path / "count.npz",
+            **{**arrays, "__meta__": np.array(json.dumps({**meta, "members": members}))},
+        )
+        with pytest.raises(ModelLoadError, match=r"members|do not fit"):
+            load_agnostic2d(tmp_path / "count.npz")
+
+
 def test_shipped_keypoint_models_load() -> None:
     """The causal model streams; the centred one (convert's) lifts whole clips only."""
     rt = load_keypoint_model()
