@@ -34,9 +34,15 @@ def run(args: argparse.Namespace) -> int:
     )
     from robot_retarget.nn.export import export_runtime
 
-    sources: list[str] = args.checkpoint
+    # A training run folder stands for its best checkpoint (either kind of model).
+    sources = [
+        str(Path(c) / "best.pt") if (Path(c) / "best.pt").is_file() else c for c in args.checkpoint
+    ]
     keypoint = [is_keypoint_checkpoint(c) for c in sources]
     if len(sources) > 1:
+        missing = [c for c in sources if not Path(c).is_file()]
+        if missing:
+            raise SystemExit(f"export: no such checkpoint file: {', '.join(missing)}")
         if not all(keypoint):
             others = ", ".join(c for c, k in zip(sources, keypoint, strict=True) if not k)
             raise SystemExit(

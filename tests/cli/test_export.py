@@ -55,6 +55,13 @@ def test_several_keypoint_checkpoints_export_as_one_ensemble(tmp_path: Path) -> 
     out = tmp_path / "ens.npz"
     assert export_cmd.run(_args(*pts, "--out", str(out))) == 0
     assert len(load_agnostic2d(out).members) == 2
+    run = tmp_path / "run"  # a training run folder stands for its best.pt
+    run.mkdir()
+    (run / "best.pt").write_bytes(Path(pts[1]).read_bytes())
+    assert export_cmd.run(_args(str(run), "--out", str(tmp_path / "one.npz"))) == 0
+    assert len(load_agnostic2d(tmp_path / "one.npz").members) == 1
+    with pytest.raises(SystemExit, match=r"no such checkpoint file: .*nope\.pt"):
+        export_cmd.run(_args(pts[0], str(tmp_path / "nope.pt"), "--out", str(out)))
     with pytest.raises(SystemExit, match="needs --out"):
         export_cmd.run(_args(*pts))
     with pytest.raises(SystemExit, match=r"only agnostic2d checkpoints.*default\.pt"):
