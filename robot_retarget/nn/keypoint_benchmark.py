@@ -2,8 +2,10 @@
 
 Rows: ``online-numpy`` (the causal step ``stream`` runs: features, encoders, head → 22
 rotations, one camera frame at a time, for the image and its mirror), ``online-numpy-single``
-(the same step on the image alone, timed alternately with it), ``clip-numpy`` (``convert``'s
-whole-clip pass, time / frames) and ``clip`` (the torch model's forward pass, time / frames).
+(the same step on the image alone, timed alternately with it), ``clip-numpy`` (the causal
+model's whole-clip pass on the image alone, time / frames), ``convert-numpy`` (``convert``'s
+lifting: the shipped clip model, every model of its ensemble, on the image and its mirror,
+time / frames) and ``clip`` (the torch model's forward pass, time / frames).
 Input: the built-in demo clip seen by a virtual camera with estimator-like noise (timing does
 not depend on it).
 """
@@ -40,6 +42,7 @@ def time_keypoint_model(
     )  # fmt: skip
     n = px.shape[0]
     runtime = load_keypoint_model()
+    convert_model = load_keypoint_model(whole_clip=True)
     # The two steps alternate frame by frame, so both see the same machine load.
     mirrored, single = runtime.online(), runtime.online(mirror_average=False)
     online: list[float] = []
@@ -50,7 +53,9 @@ def time_keypoint_model(
             step.step(px[i % n], valid[i % n])
             if i >= warmup:
                 times.append(time.perf_counter() - t0)
-    clip_np, clip_torch = [], []
+    clip_np: list[float] = []
+    convert_np: list[float] = []
+    clip_torch: list[float] = []
     model, _payload = load_keypoint_checkpoint(SHIPPED_KEYPOINT_MODEL.with_suffix(".pt"))
     feats = torch.from_numpy(normalize_sequences(px[None], valid[None]).astype(np.float32))
     with torch.inference_mode():
@@ -60,11 +65,15 @@ def time_keypoint_model(
             runtime.run_clip(px, valid, causal=False)
             clip_np.append((time.perf_counter() - t0) / n)
             t0 = time.perf_counter()
+            convert_model.run_clip(px, valid, causal=False, mirror_average=True)
+            convert_np.append((time.perf_counter() - t0) / n)
+            t0 = time.perf_counter()
             model(feats, False)
             clip_torch.append((time.perf_counter() - t0) / n)
     out = []
     rows = (("online-numpy", online, frames), ("online-numpy-single", online_single, frames),
-            ("clip-numpy", clip_np, n), ("clip", clip_torch, n))  # fmt: skip
+            ("clip-numpy", clip_np, n), ("convert-numpy", convert_np, n),
+            ("clip", clip_torch, n))  # fmt: skip
     for mode, durations, count in rows:
         stats = TimingStats.from_seconds(durations)
         out.append({"model": NAME, "mode": mode, "frames": count, "median_ms": stats.median_ms,

@@ -270,6 +270,12 @@ def test_keypoint_benchmark_times_both_steps_side_by_side() -> None:
 
     rows = time_keypoint_model(frames=20, warmup=2, repeats=1, threads=1)
     modes = {r["mode"]: r for r in rows}
-    assert set(modes) == {"online-numpy", "online-numpy-single", "clip-numpy", "clip"}
+    assert set(modes) == {
+        "online-numpy",
+        "online-numpy-single",
+        "clip-numpy",
+        "convert-numpy",
+        "clip",
+    }
     assert modes["online-numpy"]["frames"] == modes["online-numpy-single"]["frames"] == 20
     assert all(r["median_ms"] > 0.0 for r in rows)
