@@ -225,6 +225,29 @@ def test_any_keypoints_give_unit_rotations(coords: list[float], seen: list[bool]
         np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
 
 
+_CLIP_MODEL = load_keypoint_model(whole_clip=True)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    st.lists(st.floats(-1e12, 1e12, allow_nan=False), min_size=102, max_size=102),
+    st.lists(st.booleans(), min_size=51, max_size=51),
+)
+def test_any_keypoints_give_unit_rotations_in_convert(
+    coords: list[float], seen: list[bool]
+) -> None:
+    """The same for ``convert``'s lifting (the shipped clip model, every model of it, image and
+    mirror): three frames of anything give finite unit quaternions."""
+    q = _CLIP_MODEL.run_clip(
+        np.array(coords).reshape(3, 17, 2),
+        np.array(seen).reshape(3, 17),
+        causal=False,
+        mirror_average=True,
+    )
+    assert np.isfinite(q).all()
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-9)
+
+
 def test_mirror_average_is_exactly_mirror_symmetric() -> None:
     """convert's mirrored-image averaging: mirroring the image mirrors the answer."""
     from robot_retarget.keypoints.coco17 import FLIP_PAIRS
