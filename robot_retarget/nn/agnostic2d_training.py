@@ -514,8 +514,8 @@ def export_keypoint_checkpoint(
 ) -> Path:
     """``export`` for the keypoint model: the runtime ``.npz`` of one checkpoint (named after
     its file, with its sha256), or of several as one ensemble whose answers are averaged
-    (named after ``out``; each model's file, sha256 and step in ``metadata["ensemble"]``),
-    checked by loading it back."""
+    (named after ``out``; each model's file, sha256, step, validation and training command in
+    ``metadata["ensemble"]``); checked by loading it back."""
     from robot_retarget.errors import MotionFormatError
     from robot_retarget.runtime.agnostic2d import load_agnostic2d
 
@@ -544,6 +544,7 @@ def export_keypoint_checkpoint(
                 "checkpoint_sha256": digest,
                 "step": pl.get("metadata", {}).get("step"),
                 "validation": pl.get("metadata", {}).get("validation"),
+                "command": pl.get("metadata", {}).get("command"),
             }
             for (p, _m, pl), digest in zip(loaded, digests, strict=True)
         ]

@@ -15,8 +15,8 @@ dotted name (``motion.0.0`` = first motion layer's kernel, ``motion.0.1`` its bi
 ``checkpoint_sha256``, ``data_hash``, ``metadata``), the conventions of
 :mod:`robot_retarget.runtime.model`. An ensemble (``export`` of several checkpoints, answers
 averaged) is format 2: its first model's arrays as above, model i's (i ≥ 1) under
-``ensemble.i.``, ``members`` (the count) in ``__meta__`` and each model's checkpoint file and
-sha256 in ``metadata["ensemble"]``.
+``ensemble.i.``, ``members`` (the count) in ``__meta__``, and each model's checkpoint file,
+sha256, step and training command in ``metadata["ensemble"]``.
 """
 
 from __future__ import annotations

@@ -194,19 +194,32 @@ def test_shipped_keypoint_models_load() -> None:
 
 @pytest.mark.parametrize("name", ["agnostic2d", "agnostic2d_clip"])
 def test_shipped_runtime_is_the_shipped_checkpoint(name: str, tmp_path: Path) -> None:
-    """Each shipped .npz is ``export`` of its .pt: the same weights and the checkpoint's hash."""
+    """Each shipped .npz is ``export`` of its .pt files (an ensemble's: every model's, listed
+    in its metadata): the same weights and the checkpoints' hashes."""
     import hashlib
 
     from robot_retarget.nn.agnostic2d_training import export_keypoint_checkpoint
 
     shipped = load_keypoint_model(name)
     assert shipped.path is not None
-    pt = shipped.path.with_suffix(".pt")
-    fresh = load_agnostic2d(export_keypoint_checkpoint(pt, tmp_path / "a.npz", force=False))
-    assert shipped.checkpoint_sha256 == hashlib.sha256(pt.read_bytes()).hexdigest()
+    listed = shipped.metadata.get("ensemble")
+    pts = (
+        [shipped.path.parent / m["checkpoint"] for m in listed]
+        if listed
+        else [shipped.path.with_suffix(".pt")]
+    )
+    out = tmp_path / f"{name}.npz"  # an ensemble is named after its file
+    fresh = load_agnostic2d(export_keypoint_checkpoint(pts, out, force=False))
+    assert shipped.checkpoint_sha256 == hashlib.sha256(pts[0].read_bytes()).hexdigest()
+    if listed:
+        for m, pt in zip(listed, pts, strict=True):
+            assert m["checkpoint_sha256"] == hashlib.sha256(pt.read_bytes()).hexdigest()
     assert fresh.centered == shipped.centered
-    for key, a in fresh.weights.arrays().items():
-        np.testing.assert_array_equal(a, shipped.weights.arrays()[key], err_msg=key)
+    assert len(fresh.members) == len(shipped.members)
+    for a_model, b_model in zip(fresh.members, shipped.members, strict=True):
+        b_arrays = b_model.arrays()
+        for key, a in a_model.arrays().items():
+            np.testing.assert_array_equal(a, b_arrays[key], err_msg=key)
 
 
 @settings(max_examples=60)
