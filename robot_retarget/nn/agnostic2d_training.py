@@ -532,12 +532,6 @@ def export_keypoint_checkpoint(
     first, model, payload = loaded[0]
     metadata = dict(payload.get("metadata", {}))
     if len(loaded) > 1:
-        kinds = {m.centered for _p, m, _pl in loaded}
-        if len(kinds) > 1:
-            raise ModelLoadError(
-                "an ensemble's checkpoints must all be centred (centered=true) or all causal",
-                path=first,
-            )
         metadata["ensemble"] = [
             {
                 "checkpoint": p.name,
@@ -548,14 +542,17 @@ def export_keypoint_checkpoint(
             }
             for (p, _m, pl), digest in zip(loaded, digests, strict=True)
         ]
-    runtime = Agnostic2DRuntime(
-        model.export_weights(),
-        name=first.stem if len(loaded) == 1 else target.stem,
-        checkpoint_sha256=digests[0],
-        data_hash=str(payload.get("data_hash", "")),
-        metadata=metadata,
-        ensemble=tuple(m.export_weights() for _p, m, _pl in loaded[1:]),
-    )
+    try:  # the runtime refuses centred and causal models mixed
+        runtime = Agnostic2DRuntime(
+            model.export_weights(),
+            name=first.stem if len(loaded) == 1 else target.stem,
+            checkpoint_sha256=digests[0],
+            data_hash=str(payload.get("data_hash", "")),
+            metadata=metadata,
+            ensemble=tuple(m.export_weights() for _p, m, _pl in loaded[1:]),
+        )
+    except ValueError as exc:
+        raise ModelLoadError(str(exc), path=first) from None
     tmp = target.with_name(f".{target.name}.tmp")
     save_agnostic2d(runtime, tmp)
     load_agnostic2d(tmp)  # refuse to leave a file that does not load back

@@ -389,8 +389,8 @@ class MirrorAveragedStep:
 def save_agnostic2d(model: Agnostic2DRuntime, path: str | os.PathLike[str]) -> Path:
     """Write a runtime ``.npz`` (see the module docstring)."""
     out = Path(path)
-    arrays = model.weights.arrays()
-    for i, member in enumerate(model.ensemble, start=1):
+    arrays: dict[str, np.ndarray] = {}
+    for i, member in enumerate(model.members):
         arrays.update(member.arrays(_member_prefix(i)))
     meta = {
         # An ensemble is format 2, so that a version of the package that predates ensembles
@@ -422,10 +422,7 @@ def load_agnostic2d(path: str | os.PathLike[str]) -> Agnostic2DRuntime:
     if not isinstance(count, int) or count < 1:
         raise ModelLoadError(f"runtime metadata gives {count!r} members (≥ 1 expected)", path=p)
     try:
-        members = [
-            Agnostic2DWeights.from_arrays(arrays, _member_prefix(i) if i else "")
-            for i in range(count)
-        ]
+        members = [Agnostic2DWeights.from_arrays(arrays, _member_prefix(i)) for i in range(count)]
         model = Agnostic2DRuntime(
             members[0],
             name=str(meta.get("name", p.stem)),
@@ -449,8 +446,9 @@ def load_agnostic2d(path: str | os.PathLike[str]) -> Agnostic2DRuntime:
 
 
 def _member_prefix(i: int) -> str:
-    """Array-name prefix of an ensemble's member ``i`` ≥ 1 (member 0's arrays have none)."""
-    return f"ensemble.{i}."
+    """Array-name prefix of an ensemble's model ``i`` (none for the first: a single model's
+    file is an ensemble's first model)."""
+    return f"ensemble.{i}." if i else ""
 
 
 _CHECKPOINTS = Path(__file__).resolve().parent.parent / "data" / "checkpoints"
