@@ -78,6 +78,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="2D keypoint input: the camera's frame rate (default: the file's, else 30)",
     )
     parser.add_argument(
+        "--no-image-planes",
+        dest="image_planes",
+        action="store_false",
+        help="2D keypoint input: keep the keypoint model's 3D answer as it is (by default each "
+        "bone is turned into the plane the image puts it in, see README 'Video input')",
+    )
+    parser.add_argument(
         "--canonical-input",
         action="store_true",
         help="a skeleton-aware model (san) reads BVH clips on their own skeleton when it has an "
@@ -210,6 +217,7 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
         lead_in=args.lead_in,
         keypoint_model=args.keypoint_model,
         keypoint_fps=args.keypoint_fps,
+        keypoint_image_planes=args.image_planes,
         canonical_input=args.canonical_input,
         foot_lock=args.foot_lock,
     )

@@ -104,6 +104,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "or centred (default: --keypoint-model if given, else the shipped agnostic2d_clip)",
     )
     parser.add_argument(
+        "--no-image-planes",
+        dest="image_planes",
+        action="store_false",
+        help="--input 2d: the clip rows keep the keypoint model's answer as convert "
+        "--no-image-planes does (default: bones turned into the image's planes, as convert)",
+    )
+    parser.add_argument(
         "--cache-dir",
         default=None,
         help="kinematic-limit cache (default: the solver cache folder; 'none' to disable)",
@@ -126,8 +133,13 @@ def _overrides(items: list[str]) -> dict[str, float]:
 def run(args: argparse.Namespace) -> int:
     if args.one_euro is not None and args.corrupt is None:
         raise SystemExit("eval-robot: --one-euro smooths the live loop of --corrupt; add --corrupt")
-    if (args.keypoint_model or args.clip_keypoint_model) and args.input != "2d":
-        raise SystemExit("eval-robot: the keypoint models lift --input 2d; add --input 2d")
+    if (args.keypoint_model or args.clip_keypoint_model or not args.image_planes) and (
+        args.input != "2d"
+    ):
+        raise SystemExit(
+            "eval-robot: --keypoint-model, --clip-keypoint-model and --no-image-planes are "
+            "about the 2D keypoint rows; add --input 2d"
+        )
     if args.raw_positions and args.corrupt is None:
         raise SystemExit(
             "eval-robot: --raw-positions is about the live source of --corrupt; add --corrupt"
@@ -252,6 +264,7 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
         else load_keypoint_model(args.clip_keypoint_model, whole_clip=True),
         pipeline=pipeline_runner(config, model, foot_lock=args.foot_lock),
         max_frames=args.max_frames,
+        image_planes=args.image_planes,
         progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True),
     )
     if args.json:
@@ -266,7 +279,7 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
             }
             for k, r in report.rows.items()
         }
-        head = {"robot": report.robot, "model": report.model}
+        head = {"robot": report.robot, "model": report.model, "image_planes": report.image_planes}
         print(json.dumps({**head, "keypoint_model": report.keypoint_model, "rows": rows}, indent=2))
     else:
         print(markdown_2d(report))

@@ -9,10 +9,11 @@ elevation −10…45°, distance and focal length at random, never these on thes
 2. **2D** — the clip resampled to a 30 fps camera, projected through the view with
    estimator-like noise (robot_retarget.keypoints.synthetic: pixel jitter, dropouts, bursts,
    hidden face points; its own random draws), lifted as ``convert`` does (``clip``: the centred
-   keypoint model, whole-clip codes) and as ``stream`` does (``stream``: the causal model, codes
-   of the frames so far) — and sent through
-   the same pipeline. The camera's azimuth is turned back on the root (a calibrated camera
-   knows it); the scores below do not depend on heading anyway.
+   keypoint model, whole-clip codes, bones turned into the image's planes:
+   robot_retarget.keypoints.reprojection) and as ``stream`` does (``stream``: the causal model,
+   codes of the frames so far) — and sent through the same pipeline. The camera's azimuth is
+   turned back on the root (a calibrated camera knows it); the scores below do not depend on
+   heading anyway.
 
 The ``lifted`` rows are the keypoint model's own error, with no robot: the lifted performer's
 segments against the truth's, each in its own body frame, at the same 10 fps.
@@ -89,6 +90,7 @@ class Eval2DReport:
     model: str
     keypoint_model: str
     clips: int
+    image_planes: bool = True
     rows: dict[str, InputScore] = field(default_factory=dict)  # "3d" | "2d clip @ 15°" …
 
 
@@ -181,17 +183,18 @@ def evaluate_2d(
     noise: EstimatorNoise | None = None,
     seed: int = 0,
     pipeline: PipelineFn | None = None,
+    image_planes: bool = True,
     progress: Callable[[str], None] | None = None,
 ) -> Eval2DReport:
     """Score every clip from 3D and from 2D through every held-out view (module docstring);
     ``keypoint_model`` lifts the ``stream`` rows, ``clip_keypoint_model`` (if given, else the
-    same) the ``clip`` rows."""
+    same) the ``clip`` rows, with ``image_planes`` as ``convert`` (keypoints.lift)."""
     run = pipeline or pipeline_runner(config, model)
     scorer = Scorer(config)
     noise = noise or EstimatorNoise()
     lifters = {True: keypoint_model, False: clip_keypoint_model or keypoint_model}
     names = dict.fromkeys(m.name for m in (lifters[False], lifters[True]))
-    report = Eval2DReport(config.name, model, " / ".join(names), len(clips))
+    report = Eval2DReport(config.name, model, " / ".join(names), len(clips), image_planes)
     rows = report.rows
     for k, (name, path) in enumerate(clips):
         truth = load_motion(path, max_frames=max_frames)
@@ -203,7 +206,9 @@ def evaluate_2d(
                 seq = keypoints_of(truth, cam, rng, noise)
                 for causal, label in ((False, "2d clip"), (True, "2d stream")):
                     lifter = lifters[causal]
-                    lifted = world_heading(lift_keypoints(seq, lifter, causal=causal), cam)
+                    planes = image_planes and not causal
+                    lifted = lift_keypoints(seq, lifter, causal=causal, image_planes=planes)
+                    lifted = world_heading(lifted, cam)
                     own = scorer.score_lifted(truth, lifted)
                     rows.setdefault(f"lifted, {label[3:]}", InputScore()).add(*own)
                     scores = scorer.score_run(truth, run(lifted))
@@ -220,7 +225,7 @@ def markdown_2d(report: Eval2DReport) -> str:
     lines = [
         f"eval-robot --input 2d: {report.robot}, model {report.model}, keypoint model "
         f"{report.keypoint_model}, {report.clips} clips × {len(ELEVATIONS_DEG) * len(AZIMUTHS_DEG)}"
-        " views",
+        " views" + ("" if report.image_planes else ", clip rows without image planes"),
         "",
         "| input | direction error, mean (°) | vs 3D (°) | limb direction error (°) | "
         "limit violations | speed violations |",

@@ -54,14 +54,25 @@ class LiftedKeypoints:
 
 
 def lift_keypoints(
-    sequence: KeypointSequence, model: Agnostic2DRuntime, *, causal: bool = False
+    sequence: KeypointSequence,
+    model: Agnostic2DRuntime,
+    *,
+    causal: bool = False,
+    image_planes: bool | None = None,
 ) -> HumanMotion:
     """The performer's motion on the reference skeleton, averaged with the mirrored image's
     answer (``causal=False``: the whole clip's static codes, as ``convert`` uses; ``True``: as
-    ``stream``'s step computes it frame by frame)."""
+    ``stream``'s step computes it frame by frame). ``image_planes`` (default: when not causal,
+    as ``convert`` runs it): the torso and limb bones turned into the planes the keypoints put
+    them in (robot_retarget.keypoints.reprojection), which uses the whole clip."""
+    if image_planes is None:
+        image_planes = not causal
+    if image_planes and causal:
+        raise ValueError("image_planes estimates the camera from the whole clip: not causal")
     skeleton = default_canonical_skeleton()
     # Averaged with the mirrored image's answer, as the live step does (Agnostic2DRuntime.online).
     quats = model.run_clip(sequence.xy, sequence.valid, causal=causal, mirror_average=True)
+    root = np.repeat(standing_root(skeleton)[None], sequence.num_frames, axis=0)
     seen = body_seen(sequence)
     if not seen.any():
         raise MotionFormatError(
@@ -69,12 +80,15 @@ def lift_keypoints(
             "threshold: nobody to follow (check the estimator's output, or lower its threshold)",
             path=sequence.source or None,
         )
+    motion = HumanMotion(skeleton, quats, root, sequence.fps, source_path=sequence.source)
+    if image_planes:
+        from robot_retarget.keypoints.reprojection import reproject
+
+        quats = np.asarray(reproject(motion, sequence).local_quats)
     # Frames without a body hold the last seen pose (the first seen one before it).
     last = np.maximum.accumulate(np.where(seen, np.arange(len(seen)), -1))
     last[last < 0] = int(np.argmax(seen))
-    quats = quats[last]
-    root = np.repeat(standing_root(skeleton)[None], sequence.num_frames, axis=0)
-    return HumanMotion(skeleton, quats, root, sequence.fps, source_path=sequence.source)
+    return HumanMotion(skeleton, quats[last], root, sequence.fps, source_path=sequence.source)
 
 
 def load_keypoint_motion(
@@ -83,10 +97,11 @@ def load_keypoint_motion(
     model: str | None = None,
     fps: float | None = None,
     max_frames: int | None = None,
+    image_planes: bool = True,
 ) -> LiftedKeypoints:
     """A keypoint file or folder (robot_retarget.sources.keypoints) lifted by the keypoint
     model (None: the shipped one for whole clips, which looks ahead), non-causally, as
-    ``convert`` does."""
+    ``convert`` does (``image_planes``: see :func:`lift_keypoints`)."""
     from robot_retarget.runtime.agnostic2d import load_keypoint_model
     from robot_retarget.sources.keypoints import load_keypoints
 
@@ -96,5 +111,7 @@ def load_keypoint_motion(
             seq.xy[:max_frames], seq.confidence[:max_frames], seq.valid[:max_frames], seq.fps,
             seq.source,
         )  # fmt: skip
-    motion = lift_keypoints(seq, load_keypoint_model(model, whole_clip=True), causal=False)
+    motion = lift_keypoints(
+        seq, load_keypoint_model(model, whole_clip=True), causal=False, image_planes=image_planes
+    )
     return LiftedKeypoints(motion, int((~body_seen(seq)).sum()), seq.missing_fraction)

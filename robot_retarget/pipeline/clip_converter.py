@@ -40,6 +40,9 @@ class ConvertOptions:
     lead_in: bool = False
     keypoint_model: str | None = None
     keypoint_fps: float | None = None
+    # 2D keypoint input: bones turned into the planes the image puts them in
+    # (robot_retarget.keypoints.reprojection).
+    keypoint_image_planes: bool = True
     # A skeleton-aware model (san) reads a BVH clip on its own skeleton when it has an encoder
     # for it; True feeds it the canonical joints instead, as ``stream`` does.
     canonical_input: bool = False
@@ -135,7 +138,11 @@ class ClipConverter:
         network: _OwnSkeletonNetwork | None = None
         if is_keypoint_input(clip):
             lifted = load_keypoint_motion(
-                clip, model=opt.keypoint_model, fps=opt.keypoint_fps, max_frames=opt.max_frames
+                clip,
+                model=opt.keypoint_model,
+                fps=opt.keypoint_fps,
+                max_frames=opt.max_frames,
+                image_planes=opt.keypoint_image_planes,
             )
             motion = lifted.motion
             if log is not None:

@@ -93,3 +93,26 @@ def test_convert_lifts_with_the_centred_model_unless_told(tmp_path: Path) -> Non
     assert _run(str(folder), "--robot", "op3", "--out", str(outs[1]), *flags) == 0
     q = [np.asarray(RobotTrajectory.read(p).q) for p in outs]
     assert not np.allclose(q[0], q[1])
+
+
+def test_convert_turns_bones_into_the_image_planes_unless_told(tmp_path: Path) -> None:
+    """By default convert turns the lifted bones into the planes the keypoints put them in;
+    ``--no-image-planes`` keeps the keypoint model's answer."""
+    from robot_retarget.keypoints.lift import lift_keypoints, load_keypoint_motion
+    from robot_retarget.runtime.agnostic2d import load_keypoint_model
+    from robot_retarget.sources.keypoints import load_keypoints
+
+    folder = FIXTURES / "openpose_body25"
+    model = load_keypoint_model(whole_clip=True)
+    seq = load_keypoints(folder)
+    for planes in (True, False):
+        lifted = load_keypoint_motion(folder, image_planes=planes).motion
+        expected = lift_keypoints(seq, model, image_planes=planes)
+        np.testing.assert_array_equal(lifted.local_quats, expected.local_quats)
+    outs = [tmp_path / "planes.npz", tmp_path / "plain.npz"]
+    assert _run(str(folder), "--robot", "op3", "--out", str(outs[0])) == 0
+    assert _run(str(folder), "--robot", "op3", "--out", str(outs[1]), "--no-image-planes") == 0
+    trajs = [RobotTrajectory.read(p) for p in outs]
+    assert not np.allclose(trajs[0].q, trajs[1].q)
+    config = load_robot_config("op3")
+    assert all(check_limits(config, t.q, 1.0 / t.fps).ok for t in trajs)

@@ -145,6 +145,8 @@ def test_eval_robot_refuses_keypoint_models_it_cannot_use(
     for option in ("--keypoint-model", "--clip-keypoint-model"):
         with pytest.raises(SystemExit, match="add --input 2d"):
             main(["eval-robot", option, "agnostic2d"])
+    with pytest.raises(SystemExit, match="add --input 2d"):
+        main(["eval-robot", "--no-image-planes"])
     (tmp_path / "99").mkdir()
     (tmp_path / "99" / "99_01.bvh").write_bytes(CLIP.read_bytes())
     args = ["eval-robot", "--input", "2d", "--data", str(tmp_path)]
@@ -154,7 +156,17 @@ def test_eval_robot_refuses_keypoint_models_it_cannot_use(
     assert main([*args, "--model", "copy-scaled", "--max-frames", "40", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["keypoint_model"] == "agnostic2d_clip / agnostic2d"
+    assert report["image_planes"] is True
     assert report["rows"]["2d clip"]["limit_violations"] == 0
+    # Without the image planes only the clip rows change.
+    assert main([*args, "--model", "copy-scaled", "--max-frames", "40", "--json",
+                 "--no-image-planes"]) == 0  # fmt: skip
+    plain = json.loads(capsys.readouterr().out)
+    assert plain["image_planes"] is False
+    for key in ("2d stream", "lifted, stream"):
+        assert plain["rows"][key] == report["rows"][key]
+    for key in ("2d clip", "lifted, clip"):
+        assert plain["rows"][key] != report["rows"][key]
     # --keypoint-model alone lifts both row sets.
     flags = ["--model", "copy-scaled", "--max-frames", "40", "--json"]
     assert main([*args, *flags, "--keypoint-model", "agnostic2d"]) == 0
