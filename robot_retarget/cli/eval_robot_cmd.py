@@ -107,8 +107,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--no-image-planes",
         dest="image_planes",
         action="store_false",
-        help="--input 2d: the clip rows keep the keypoint model's answer as convert "
-        "--no-image-planes does (default: bones turned into the image's planes, as convert)",
+        help="--input 2d: keep the keypoint model's answer as convert and stream "
+        "--no-image-planes do (default: bones turned into the image's planes, as they do)",
     )
     parser.add_argument(
         "--cache-dir",

@@ -52,6 +52,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="udp-keypoints: the 2D keypoint model's runtime .npz (default: the shipped causal "
         "agnostic2d; a model trained with centered=true looks ahead and cannot stream)",
     )
+    parser.add_argument(
+        "--no-image-planes",
+        dest="image_planes",
+        action="store_false",
+        help="udp-keypoints: keep the keypoint model's answer as it is (by default each bone is "
+        "turned into the plane the image puts it in, the camera fitted on the frames so far; "
+        "see README 'Video input')",
+    )
     parser.add_argument("--backend", choices=("sim", "dynamixel"), default="sim")
     add_port_argument(parser)
     parser.add_argument("--rate", type=float, help="control rate in Hz (default: the config's)")
@@ -150,6 +158,11 @@ def run(args: argparse.Namespace) -> int:
             f"--raw-positions is about the position packets of a udp:// source, not "
             f"{args.source!r}; leave it out"
         )
+    if not args.image_planes and not args.source.startswith("udp-keypoints://"):
+        raise RetargetError(
+            f"--no-image-planes is about the 2D keypoints of a udp-keypoints:// source, not "
+            f"{args.source!r}; leave it out"
+        )
     _check_remote(args)
     if args.view:
         from robot_retarget.viewer.dependency import require_viser
@@ -171,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
         allow_remote=args.allow_remote,
         keypoint_model=args.keypoint_model,
         clean_positions=not args.raw_positions,
+        image_planes=args.image_planes,
     )
     model = load_runtime_model(args.model or default_model_name())
     step = RetargetStep(  # refuses a foot lock the model lacks before it builds the solver

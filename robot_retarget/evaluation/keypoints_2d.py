@@ -11,9 +11,9 @@ elevation −10…45°, distance and focal length at random, never these on thes
    hidden face points; its own random draws), lifted as ``convert`` does (``clip``: the centred
    keypoint model, whole-clip codes, bones turned into the image's planes:
    robot_retarget.keypoints.reprojection) and as ``stream`` does (``stream``: the causal model,
-   codes of the frames so far) — and sent through the same pipeline. The camera's azimuth is
-   turned back on the root (a calibrated camera knows it); the scores below do not depend on
-   heading anyway.
+   codes of the frames so far, the planes with the camera fitted so far) — and sent through
+   the same pipeline. The camera's azimuth is turned back on the root (a calibrated camera
+   knows it); the scores below do not depend on heading anyway.
 
 The ``lifted`` rows are the keypoint model's own error, with no robot: the lifted performer's
 segments against the truth's, each in its own body frame, at the same 10 fps.
@@ -188,7 +188,7 @@ def evaluate_2d(
 ) -> Eval2DReport:
     """Score every clip from 3D and from 2D through every held-out view (module docstring);
     ``keypoint_model`` lifts the ``stream`` rows, ``clip_keypoint_model`` (if given, else the
-    same) the ``clip`` rows, with ``image_planes`` as ``convert`` (keypoints.lift)."""
+    same) the ``clip`` rows; ``image_planes`` as ``convert`` and ``stream`` (keypoints.lift)."""
     run = pipeline or pipeline_runner(config, model)
     scorer = Scorer(config)
     noise = noise or EstimatorNoise()
@@ -206,8 +206,7 @@ def evaluate_2d(
                 seq = keypoints_of(truth, cam, rng, noise)
                 for causal, label in ((False, "2d clip"), (True, "2d stream")):
                     lifter = lifters[causal]
-                    planes = image_planes and not causal
-                    lifted = lift_keypoints(seq, lifter, causal=causal, image_planes=planes)
+                    lifted = lift_keypoints(seq, lifter, causal=causal, image_planes=image_planes)
                     lifted = world_heading(lifted, cam)
                     own = scorer.score_lifted(truth, lifted)
                     rows.setdefault(f"lifted, {label[3:]}", InputScore()).add(*own)
@@ -225,7 +224,7 @@ def markdown_2d(report: Eval2DReport) -> str:
     lines = [
         f"eval-robot --input 2d: {report.robot}, model {report.model}, keypoint model "
         f"{report.keypoint_model}, {report.clips} clips × {len(ELEVATIONS_DEG) * len(AZIMUTHS_DEG)}"
-        " views" + ("" if report.image_planes else ", clip rows without image planes"),
+        " views" + ("" if report.image_planes else ", without the image's planes"),
         "",
         "| input | direction error, mean (°) | vs 3D (°) | limb direction error (°) | "
         "limit violations | speed violations |",

@@ -58,17 +58,14 @@ def lift_keypoints(
     model: Agnostic2DRuntime,
     *,
     causal: bool = False,
-    image_planes: bool | None = None,
+    image_planes: bool = True,
 ) -> HumanMotion:
     """The performer's motion on the reference skeleton, averaged with the mirrored image's
     answer (``causal=False``: the whole clip's static codes, as ``convert`` uses; ``True``: as
-    ``stream``'s step computes it frame by frame). ``image_planes`` (default: when not causal,
-    as ``convert`` runs it): the torso and limb bones turned into the planes the keypoints put
-    them in (robot_retarget.keypoints.reprojection), which uses the whole clip."""
-    if image_planes is None:
-        image_planes = not causal
-    if image_planes and causal:
-        raise ValueError("image_planes estimates the camera from the whole clip: not causal")
+    ``stream``'s step computes it frame by frame). ``image_planes`` (default on): the torso
+    and limb bones turned into the planes the keypoints put them in, with the camera fitted on
+    the whole clip (robot_retarget.keypoints.reprojection) or, when causal, on the frames so
+    far as ``stream`` does (robot_retarget.keypoints.online_reprojection)."""
     skeleton = default_canonical_skeleton()
     # Averaged with the mirrored image's answer, as the live step does (Agnostic2DRuntime.online).
     quats = model.run_clip(sequence.xy, sequence.valid, causal=causal, mirror_average=True)
@@ -81,7 +78,12 @@ def lift_keypoints(
             path=sequence.source or None,
         )
     motion = HumanMotion(skeleton, quats, root, sequence.fps, source_path=sequence.source)
-    if image_planes:
+    if image_planes and causal:
+        from robot_retarget.keypoints.online_reprojection import OnlineReprojection
+
+        planes = OnlineReprojection(skeleton)
+        quats = np.stack([planes.step(q, xy) for q, xy in zip(quats, sequence.xy, strict=True)])
+    elif image_planes:
         from robot_retarget.keypoints.reprojection import reproject
 
         quats = np.asarray(reproject(motion, sequence).local_quats)

@@ -26,6 +26,8 @@ stays missing), and a bone with an end point missing keeps the model's direction
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,7 +39,7 @@ from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.keypoints.virtual_camera import VirtualCamera
 from robot_retarget.motion.human_motion import HumanMotion, skeleton_height
 from robot_retarget.skeleton.canonical import Joint
-from robot_retarget.skeleton.skeleton import local_from_global
+from robot_retarget.skeleton.skeleton import Skeleton
 
 ASSUMED_DISTANCE_HEIGHTS = 3.25
 ELEVATIONS_DEG = np.arange(-20.0, 60.5, 1.0)  # candidates: training draws −10…45°
@@ -67,10 +69,18 @@ _FIT_KEYPOINTS = [(b[2], b[3]) for b in LIMB_BONES] + [
     (Coco.left_shoulder, Coco.right_shoulder), (Coco.left_hip, Coco.right_hip),
     (Coco.left_hip, Coco.left_shoulder), (Coco.right_hip, Coco.right_shoulder),
 ]  # fmt: skip
-_FOLLOWERS = (  # keep their local rotations: they move with the bone they hang from
-    Joint.LeftHand, Joint.RightHand, Joint.LeftFoot, Joint.RightFoot,
-    Joint.LeftToeBase, Joint.RightToeBase,
-)  # fmt: skip
+_FIT_STARTS, _FIT_ENDS = (np.array(c, dtype=np.int64) for c in zip(*_FIT_SEGMENTS, strict=True))
+_FIT_KEY_STARTS, _FIT_KEY_ENDS = (
+    np.array(c, dtype=np.int64) for c in zip(*_FIT_KEYPOINTS, strict=True)
+)
+_COST_CHUNK = 32
+_LIMB_JOINTS, _LIMB_CHILDREN, _LIMB_KEY_STARTS, _LIMB_KEY_ENDS = (
+    np.array(c, dtype=np.int64) for c in zip(*LIMB_BONES, strict=True)
+)
+# The joints whose local rotation the turns change: the spine's first joint (the torso) and
+# the limb bones' (each turned, and the arms' parents turned with the torso). Hands, feet and
+# toes keep their local rotations: they move with the bone they hang from.
+_CHANGED = np.array([Joint.Spine, *(b[0] for b in LIMB_BONES)], dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -85,8 +95,7 @@ class CameraEstimate:
 
     def rotation(self) -> FloatArray:
         """Heading frame → camera (rows: right, down, forward)."""
-        cam = VirtualCamera(0.0, self.elevation_rad, self.distance_m, self.focal_px)
-        return cam.pose(np.zeros(3))[1]
+        return _rotation(self.elevation_rad)
 
     def rays(self, xy: FloatArray) -> FloatArray:
         """Pixels (..., 2) → viewing rays (..., 3) in camera coordinates (not unit)."""
@@ -115,68 +124,97 @@ def smooth_keypoints(xy: FloatArray, valid: BoolArray, fps: float) -> FloatArray
     return np.where(w[..., None] > 0, smoothed, np.nan)
 
 
-def _project(body: FloatArray, elevation: float, distance: float) -> FloatArray:
-    """Points (..., 3) relative to the hips, heading frame → image (..., 2) at unit focal length
-    over ``distance`` (x right, y down)."""
-    rot = VirtualCamera(0.0, elevation, distance, 1.0).pose(np.zeros(3))[1]
-    cam = body @ rot.T
+@functools.lru_cache(maxsize=256)  # the live step asks every frame
+def _rotation(elevation_rad: float) -> FloatArray:
+    rot = VirtualCamera(0.0, elevation_rad, 1.0, 1.0).pose(np.zeros(3))[1]
+    rot.setflags(write=False)
+    return rot
+
+
+def candidate_rotations(elevations_deg: FloatArray = ELEVATIONS_DEG) -> FloatArray:
+    """(E, 3, 3) heading frame → camera rotations of the candidate elevations."""
+    return np.stack([_rotation(math.radians(e)) for e in elevations_deg])
+
+
+def _project(rel: FloatArray, rots: FloatArray, distance: float) -> FloatArray:
+    """Points (T, N, 3) relative to the hips, heading frame → image (E, T, N, 2) through each of
+    the rotations (E, 3, 3) at unit focal length over ``distance`` (x right, y down)."""
+    cam = rel[None] @ np.swapaxes(rots, -1, -2)[:, None]
     return np.asarray(cam[..., :2] / (1.0 + cam[..., 2:] / distance), dtype=np.float64)
+
+
+def direction_costs(
+    rel: FloatArray, xy: FloatArray, rots: FloatArray, distance: float
+) -> FloatArray:
+    """(E,) how far the image directions of the fitted segments of ``rel`` (T, 22, 3, joint
+    positions relative to the hips) under each rotation (E, 3, 3) are from the keypoints'
+    ``xy`` (T, 17, 2, NaN where missing): Σ over frames and segments of the keypoints' segment
+    length × (1 − cos of the angle between the two directions)."""
+    seen = xy[:, _FIT_KEY_ENDS] - xy[:, _FIT_KEY_STARTS]  # (T, S, 2)
+    ok: BoolArray = np.asarray(np.isfinite(seen).all(axis=-1))
+    seen = np.where(ok[..., None], seen, 0.0)
+    weight = np.sqrt(np.sum(seen * seen, axis=-1))  # 0 where missing
+    seen_dir = seen / np.maximum(weight, 1e-9)[..., None]
+    proj = _project(rel, rots, distance)
+    vec = proj[:, :, _FIT_ENDS] - proj[:, :, _FIT_STARTS]  # (E, T, S, 2)
+    norm = np.sqrt(np.sum(vec * vec, axis=-1))
+    cos = np.sum(vec * seen_dir, axis=-1) / np.maximum(norm, 1e-12)
+    return np.asarray(np.sum(weight * (1.0 - cos), axis=(1, 2)), dtype=np.float64)
+
+
+def image_scales(rel: FloatArray, xy: FloatArray, rot: FloatArray, distance: float) -> FloatArray:
+    """Per-frame image scale (pixels per metre at the hips' depth; least squares over the body
+    points, offsets free) of the frames with three or more body points seen."""
+    obs = xy[:, _BODY_K]
+    w = np.asarray(np.isfinite(obs).all(axis=-1), dtype=np.float64)
+    frames = w.sum(axis=1) >= 3.0  # a scale and an offset need a few points
+    proj = _project(rel[frames][:, _BODY_J], rot[None], distance)[0]
+    obs, w = np.nan_to_num(obs[frames]), w[frames]
+    n = np.maximum(w.sum(axis=1), 1.0)[:, None, None]
+    obs_c = obs - (obs * w[..., None]).sum(axis=1, keepdims=True) / n
+    proj_c = proj - (proj * w[..., None]).sum(axis=1, keepdims=True) / n
+    num = ((proj_c * obs_c).sum(-1) * w).sum(1)
+    return np.asarray(num / np.maximum(((proj_c * proj_c).sum(-1) * w).sum(1), 1e-12))
+
+
+def camera_distance(skeleton: Skeleton) -> float:
+    """The assumed camera distance (metres) for a performer lifted onto ``skeleton``."""
+    return ASSUMED_DISTANCE_HEIGHTS * skeleton_height(skeleton)
 
 
 def estimate_camera(motion: HumanMotion, xy: FloatArray) -> CameraEstimate | None:
     """The camera (module docstring) that best reprojects ``motion`` (the keypoint model's
     answer, heading frame) onto ``xy`` (T, 17, 2, NaN where missing); None where the keypoints
-    cannot tell (no bone seen at both ends, no frame with three body points, no positive
+    cannot tell (no segment seen at both ends, no frame with three body points, no positive
     image scale).
 
     The elevation is the one under which the lifted bones' image directions best match the
-    keypoints' (each bone weighted by its length in the image). Directions, not positions: the
-    performer's proportions are not the reference skeleton's, and a fit of positions tilts the
-    camera to make up the difference (on subjects 02 and 13 its elevation was 5–17° off at
-    30°, the directions' 1–10°). The focal length then comes from the per-frame image scale."""
-    distance = ASSUMED_DISTANCE_HEIGHTS * skeleton_height(motion.skeleton)
+    keypoints' (:func:`direction_costs`). Directions, not positions: the performer's
+    proportions are not the reference skeleton's, and a fit of positions tilts the camera to
+    make up the difference (on subjects 02 and 13 its elevation was 5–17° off at 30°, the
+    directions' 1–10°). The focal length then comes from the median image scale."""
+    distance = camera_distance(motion.skeleton)
     pos = motion.positions()
-    rel: FloatArray = np.asarray(pos - pos[:, :1])  # from the hips
+    rel: FloatArray = np.asarray(pos - pos[:, :1])
     obs = np.asarray(xy, dtype=np.float64)
-    starts, ends = (np.array(c, dtype=np.int64) for c in zip(*_FIT_SEGMENTS, strict=True))
-    k_starts, k_ends = (np.array(c, dtype=np.int64) for c in zip(*_FIT_KEYPOINTS, strict=True))
-    seen_vec = obs[:, k_ends] - obs[:, k_starts]  # (T, S, 2)
-    seen_len = np.linalg.norm(np.nan_to_num(seen_vec), axis=-1)
-    weight = np.where(np.isfinite(seen_vec).all(axis=-1), seen_len, 0.0)
-    if not weight.any():
+    rots = candidate_rotations()
+    costs = np.zeros(len(rots))
+    for t in range(0, len(rel), _COST_CHUNK):  # bounded memory on long clips
+        costs += direction_costs(rel[t : t + _COST_CHUNK], obs[t : t + _COST_CHUNK], rots, distance)
+    seen = np.isfinite(obs[:, _FIT_KEY_ENDS] - obs[:, _FIT_KEY_STARTS]).all(axis=-1)
+    if not seen.any():
         return None
-    seen_dir = np.nan_to_num(seen_vec) / np.maximum(seen_len, 1e-9)[..., None]
-    best: tuple[float, float] | None = None
-    for elevation in np.radians(ELEVATIONS_DEG):
-        proj = _project(rel, float(elevation), distance)
-        vec = proj[:, ends] - proj[:, starts]
-        unit = vec / np.maximum(np.linalg.norm(vec, axis=-1, keepdims=True), 1e-12)
-        cost = float((weight * (1.0 - (unit * seen_dir).sum(axis=-1))).sum())
-        if best is None or cost < best[0]:
-            best = (cost, float(elevation))
-    assert best is not None
-    elevation = best[1]
-    # Per-frame image scale (pixels per metre at the hips' depth) by least squares.
-    body_obs = obs[:, _BODY_K]
-    w: FloatArray = np.asarray(np.isfinite(body_obs).all(axis=-1), dtype=np.float64)
-    frames = w.sum(axis=1) >= 3.0  # a scale and an offset need a few points
-    if not frames.any():
-        return None
-    proj = _project(rel[:, _BODY_J], elevation, distance)[frames]
-    body_obs, w = np.nan_to_num(body_obs[frames]), w[frames]
-    n = np.maximum(w.sum(axis=1), 1.0)[:, None, None]
-    obs_c = body_obs - (body_obs * w[..., None]).sum(axis=1, keepdims=True) / n
-    proj_c = proj - (proj * w[..., None]).sum(axis=1, keepdims=True) / n
-    scale = ((proj_c * obs_c).sum(-1) * w).sum(1) / np.maximum(
-        ((proj_c * proj_c).sum(-1) * w).sum(1), 1e-12
-    )
-    focal = float(np.median(scale)) * distance
-    if not (np.isfinite(focal) and focal > 0.0):
+    best = int(np.argmin(costs))
+    scales = image_scales(rel, obs, rots[best], distance)
+    focal = float(np.median(scales)) * distance if len(scales) else math.nan
+    if not (math.isfinite(focal) and focal > 0.0):
         return None
     hips = 0.5 * (obs[:, Coco.left_hip] + obs[:, Coco.right_hip])
-    seen = np.isfinite(hips).all(axis=-1)
-    principal = np.median(hips[seen] if seen.any() else obs[np.isfinite(obs).all(-1)], axis=0)
-    return CameraEstimate(elevation, focal, principal, distance)
+    hips_seen = np.isfinite(hips).all(axis=-1)
+    principal = np.median(
+        hips[hips_seen] if hips_seen.any() else obs[np.isfinite(obs).all(-1)], axis=0
+    )
+    return CameraEstimate(math.radians(ELEVATIONS_DEG[best]), focal, principal, distance)
 
 
 def _into_planes(
@@ -184,7 +222,7 @@ def _into_planes(
 ) -> FloatArray:
     """Unit ``directions`` (T, 3, camera frame) turned toward the planes spanned by the rays
     (T, 3) (weighted by how much each lies across the view); NaN rays leave them as they are."""
-    normal = np.cross(ray_a, ray_b)
+    normal = quat.cross(ray_a, ray_b)
     size = np.linalg.norm(normal, axis=-1, keepdims=True)
     ok = np.isfinite(size[:, 0]) & (size[:, 0] > 1e-9)
     normal = np.where(ok[:, None], normal / np.where(ok[:, None], size, 1.0), 0.0)
@@ -212,36 +250,109 @@ def reproject(motion: HumanMotion, sequence: KeypointSequence) -> HumanMotion:
     camera = estimate_camera(motion, xy)
     if camera is None:
         return motion
-    rot = camera.rotation()
-    skel = motion.skeleton
-    glob = motion.global_quats().copy()
+    pose = MatrixPose.of(motion.skeleton, np.asarray(motion.local_quats))
+    local = turn_into_planes(pose, xy, camera)
+    return HumanMotion(
+        motion.skeleton, local, motion.root_pos, motion.fps, source_path=motion.source_path
+    )
 
+
+@dataclass(frozen=True)
+class MatrixPose:
+    """Frames of a pose as rotation matrices: ``local`` quaternions (T, 22, 4) and their
+    global rotation matrices (T, 22, 3, 3) and joint positions (T, 22, 3), root at the origin.
+    Matrices because one live frame is a few dozen small products (quaternion products cost
+    several numpy calls each)."""
+
+    skeleton: Skeleton
+    local: FloatArray
+    global_m: FloatArray
+    positions: FloatArray
+
+    @classmethod
+    def of(cls, skeleton: Skeleton, local: FloatArray) -> MatrixPose:
+        local_m = quat.to_matrix(local)
+        glob = np.empty_like(local_m)
+        pos = np.zeros((*local.shape[:-1], 3))
+        glob[:, 0] = local_m[:, 0]
+        offsets = skeleton.offsets
+        for idx, par in skeleton.depth_levels:  # one batched product per tree depth
+            parent = glob[:, par]
+            pos[:, idx] = pos[:, par] + (parent @ offsets[idx][..., None])[..., 0]
+            glob[:, idx] = parent @ local_m[:, idx]
+        return cls(skeleton, local, glob, pos)
+
+
+def _turns(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Rotation matrices (..., 3, 3) taking unit vectors ``a`` onto unit vectors ``b`` by the
+    shortest arc (Rodrigues). The turns here never reach 90°: a direction is moved toward a
+    plane it makes less than 90° with."""
+    v = quat.cross(a, b)
+    c = np.sum(a * b, axis=-1)[..., None, None]
+    k = np.zeros((*v.shape, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return np.asarray(np.eye(3) + k + (k @ k) / np.maximum(1.0 + c, 1e-12), dtype=np.float64)
+
+
+def turn_into_planes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> FloatArray:
+    """Local rotations (T, 22, 4) of ``pose`` (heading frame) with the torso and then each limb
+    bone turned toward the planes of the keypoints ``xy`` (T, 17, 2) seen by ``camera``
+    (module docstring). Joints whose local rotation does not change keep their quaternions."""
+    rot = camera.rotation()
+    glob = pose.global_m.copy()
+    pos = pose.positions
     # The torso: hip centre → shoulder centre, turned about the spine with everything above it.
     # (The spine's joint is not the hip centre, so the turn lands near the plane, not on it; a
     # second turn onto it scored 0.01–0.05° worse overall on subjects 02 and 13.)
     hip2 = 0.5 * (xy[:, Coco.left_hip] + xy[:, Coco.right_hip])
     shoulder2 = 0.5 * (xy[:, Coco.left_shoulder] + xy[:, Coco.right_shoulder])
-    torso_rays = (camera.rays(hip2), camera.rays(shoulder2))
-    upper = _subtree(skel.parents, int(Joint.Spine))
-    pos = motion.positions()
     hip3 = 0.5 * (pos[:, Joint.LeftUpLeg] + pos[:, Joint.RightUpLeg])
     shoulder3 = 0.5 * (pos[:, Joint.LeftArm] + pos[:, Joint.RightArm])
     before = _unit(shoulder3 - hip3) @ rot.T
-    after = _into_planes(before, *torso_rays, weighted=False)
-    turn = quat.from_two_vectors(before @ rot, after @ rot)
-    glob[:, upper] = quat.mul(turn[:, None], glob[:, upper])
+    after = _into_planes(before, camera.rays(hip2), camera.rays(shoulder2), weighted=False)
+    upper = _upper_body(pose.skeleton)
+    glob[:, upper] = _turns(before @ rot, after @ rot)[:, None] @ glob[:, upper]
 
-    # Each limb bone, on its own: its child keeps its global rotation until its own turn.
-    for joint, child, start, end in LIMB_BONES:
-        bone = quat.rotate(glob[:, joint], skel.offsets[child])
-        before = _unit(bone) @ rot.T
-        after = _into_planes(before, camera.rays(xy[:, start]), camera.rays(xy[:, end]))
-        glob[:, joint] = quat.mul(quat.from_two_vectors(before @ rot, after @ rot), glob[:, joint])
+    # Each limb bone on its own (its child keeps its global rotation), all in one pass.
+    t, n = glob.shape[0], len(LIMB_BONES)
+    bone = (glob[:, _LIMB_JOINTS] @ pose.skeleton.offsets[_LIMB_CHILDREN][..., None])[..., 0]
+    before = (_unit(bone) @ rot.T).reshape(t * n, 3)
+    ray_a = camera.rays(xy[:, _LIMB_KEY_STARTS]).reshape(t * n, 3)
+    ray_b = camera.rays(xy[:, _LIMB_KEY_ENDS]).reshape(t * n, 3)
+    after = _into_planes(before, ray_a, ray_b)
+    turn = _turns(before @ rot, after @ rot).reshape(t, n, 3, 3)
+    glob[:, _LIMB_JOINTS] = turn @ glob[:, _LIMB_JOINTS]
 
-    local = local_from_global(skel, glob)
-    follow = list(_FOLLOWERS)
-    local[:, follow] = np.asarray(motion.local_quats)[:, follow]
-    return HumanMotion(skel, local, motion.root_pos, motion.fps, source_path=motion.source_path)
+    # Only the spine and the limb joints' local rotations change (the rest turned with their
+    # parents, or keep theirs: hands, feet, toes). Each change is a turn of under 180° (at
+    # most two turns of under 90°), so its quaternion comes from the trace, w > 0, and the
+    # result stays in its joint's hemisphere.
+    parents = [pose.skeleton.parents[j] for j in _CHANGED]
+    before_m = np.swapaxes(pose.global_m[:, parents], -1, -2) @ pose.global_m[:, _CHANGED]
+    after_m = np.swapaxes(glob[:, parents], -1, -2) @ glob[:, _CHANGED]
+    change = after_m @ np.swapaxes(before_m, -1, -2)
+    trace = change[..., 0, 0] + change[..., 1, 1] + change[..., 2, 2]
+    if (trace < -0.9).any():  # past ~160°: Shepperd's method, robust everywhere
+        q_change = quat.from_matrix(change)
+    else:
+        w = 0.5 * np.sqrt(1.0 + trace)
+        q_change = np.stack(
+            [
+                w,
+                (change[..., 2, 1] - change[..., 1, 2]) / (4.0 * w),
+                (change[..., 0, 2] - change[..., 2, 0]) / (4.0 * w),
+                (change[..., 1, 0] - change[..., 0, 1]) / (4.0 * w),
+            ],
+            axis=-1,
+        )
+    out = np.array(pose.local)
+    out[:, _CHANGED] = quat.normalize(quat.mul(q_change, pose.local[:, _CHANGED]))
+    return out
+
+
+def _upper_body(skeleton: Skeleton) -> list[int]:
+    return _subtree(skeleton.parents, int(Joint.Spine))
 
 
 def _subtree(parents: tuple[int, ...], root: int) -> list[int]:

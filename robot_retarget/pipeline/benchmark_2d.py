@@ -3,9 +3,12 @@
 Input: the built-in demo clip seen by a 30 fps virtual camera (elevation 15°, 4 m, 1000 px)
 with estimator-like noise, a second, smaller person beside the performer. Per camera frame
 (as the receiver thread does): ``decode`` (a COCO-17 JSON packet with two people → checked
-points, the person rule) and ``keypoint model`` (the causal keypoint model's step: features,
-encoders, head → 22 canonical rotations). Per control tick, on the rotations interpolated
-between the last two camera frames (as the control loop does), as ``bench pipeline``:
+points, the person rule), ``keypoint model`` (the causal keypoint model's step: features,
+encoders, head → 22 canonical rotations) and ``image planes`` (those rotations turned into the
+image's planes, the camera fitted on the frames so far: robot_retarget.keypoints
+.online_reprojection; the warm-up's camera frames are more than it needs to fit one). Per
+control tick, on the rotations interpolated between the last two camera frames (as the control
+loop does), as ``bench pipeline``:
 ``network``, ``targets``, ``optimizer`` (the three parts of
 :class:`robot_retarget.pipeline.step.RetargetStep`), ``safety``. ``total``: a tick's stages
 plus the camera frame's when one arrived on that tick; ``total, tick with a camera frame``:
@@ -27,6 +30,7 @@ from robot_retarget.bench_stats import stage_records
 STAGES_2D: tuple[str, ...] = (
     "decode",
     "keypoint model",
+    "image planes",
     "network",
     "targets",
     "optimizer",
@@ -41,6 +45,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
     from robot_retarget.geometry import quaternion as quat
     from robot_retarget.hardware.safety import SafetyLayer
     from robot_retarget.hardware.types import JointCommand
+    from robot_retarget.keypoints.online_reprojection import OnlineReprojection
     from robot_retarget.keypoints.synthetic import EstimatorNoise, render_keypoints
     from robot_retarget.keypoints.virtual_camera import VirtualCamera
     from robot_retarget.motion.synthetic import demo_motion
@@ -68,6 +73,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
     bystander = people.copy()
     bystander[..., :2] = bystander[..., :2] * 0.4 + 20.0
     keypoint_step = load_keypoint_model(args.keypoint_model).online()
+    planes = OnlineReprojection()
     tracker = PersonTracker()
     model = load_runtime_model(args.model or default_model_name())
     step = RetargetStep(config, model, motion.skeleton, foot_lock=args.foot_lock)
@@ -96,12 +102,15 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
                 raise RuntimeError(f"benchmark frame {frame}: the performer was not followed")
             xy, _conf, valid = pkt.people[chosen]
             t1 = time.perf_counter()
-            previous, current = current, keypoint_step.step(xy, valid)
+            lifted = keypoint_step.step(xy, valid)
             t2 = time.perf_counter()
-            arrived = t2 - t0
+            previous, current = current, planes.step(lifted, np.where(valid[:, None], xy, np.nan))
+            t3 = time.perf_counter()
+            arrived = t3 - t0
             if k >= args.warmup:
                 times["decode"].append(t1 - t0)
                 times["keypoint model"].append(t2 - t1)
+                times["image planes"].append(t3 - t2)
         assert current is not None
         # The control loop interpolates between the last two input frames.
         local = current if previous is None else quat.slerp(previous, current, camera_t - frame)
@@ -111,7 +120,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
         safety.send(JointCommand(out.q, k * dt * (1.0 + 1e-9)))
         t4 = time.perf_counter()
         if k >= args.warmup:
-            for name, d in zip(STAGES_2D[2:6], (*out.times_s, t4 - t3), strict=True):
+            for name, d in zip(STAGES_2D[3:7], (*out.times_s, t4 - t3), strict=True):
                 times[name].append(d)
             times["total"].append(t4 - t2 + arrived)
             if arrived:

@@ -61,10 +61,13 @@ def open_source(
     max_frames: int | None = None,
     keypoint_model: str | None = None,
     clean_positions: bool = True,
+    image_planes: bool = True,
 ) -> MotionSource:
     """A (not yet started) source for ``spec``; raises SourceError for anything unusable.
     ``clean_positions=False``: a UDP source solves position packets as sent (no frozen-joint,
-    limb-swap or jitter cleanup, :mod:`robot_retarget.sources.position_cleanup`)."""
+    limb-swap or jitter cleanup, :mod:`robot_retarget.sources.position_cleanup`).
+    ``image_planes=False``: a keypoint source keeps the keypoint model's answer as it is
+    (:mod:`robot_retarget.keypoints.online_reprojection`)."""
     if spec.startswith("replay:"):
         from robot_retarget.errors import MotionFormatError
         from robot_retarget.motion.human_motion import load_motion
@@ -98,5 +101,7 @@ def open_source(
         host, port = _host_port(spec, DEFAULT_KEYPOINT_PORT)
         check_bind_address(host, allow_remote, "UDP bind")  # before loading anything
         model = load_keypoint_model(keypoint_model)
-        return UdpKeypointSource(model, host, port, token=token, allow_remote=allow_remote)
+        return UdpKeypointSource(
+            model, host, port, token=token, allow_remote=allow_remote, image_planes=image_planes
+        )
     raise SourceError(f"unknown source {spec!r}; use {SOURCE_FORMS}")

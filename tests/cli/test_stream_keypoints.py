@@ -43,6 +43,13 @@ def test_remote_keypoint_sources_need_permission_and_a_token() -> None:
         stream_cmd.run(_args("--source", "udp-keypoints://0.0.0.0:9751", "--allow-remote"))
 
 
+def test_no_image_planes_is_refused_without_a_keypoint_source() -> None:
+    from robot_retarget.errors import RetargetError
+
+    with pytest.raises(RetargetError, match="--no-image-planes is about the 2D keypoints"):
+        stream_cmd.run(_args("--source", "udp://127.0.0.1:9750", "--no-image-planes"))
+
+
 def _wait_until_bound(port: int, stop: threading.Event, timeout_s: float = 60.0) -> None:
     """Return once something listens on UDP ``port`` (binding it ourselves fails)."""
     deadline = time.monotonic() + timeout_s

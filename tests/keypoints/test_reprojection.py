@@ -14,6 +14,7 @@ from robot_retarget.evaluation.robot.segments import human_body_points
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.coco17 import Coco
 from robot_retarget.keypoints.lift import lift_keypoints
+from robot_retarget.keypoints.online_reprojection import MIN_FRAMES, OnlineReprojection
 from robot_retarget.keypoints.reprojection import (
     ASSUMED_DISTANCE_HEIGHTS,
     estimate_camera,
@@ -118,10 +119,29 @@ def test_frame_counts_must_agree(truth: HumanMotion) -> None:
         reproject(truth.frames(0, 10), _seen(truth, 0.0))
 
 
-def test_stream_lifting_cannot_use_the_whole_clip(truth: HumanMotion) -> None:
+def test_stream_lifting_turns_each_frame_with_the_camera_so_far(truth: HumanMotion) -> None:
+    """The causal lifting is the stream's: the model's step, then OnlineReprojection frame by
+    frame; nothing before MIN_FRAMES is turned, and a frame's answer never depends on later
+    frames."""
+    seen = _seen(truth, 15.0)
     model = load_keypoint_model(None)
-    with pytest.raises(ValueError, match="not causal"):
-        lift_keypoints(_seen(truth, 0.0), model, causal=True, image_planes=True)
+    plain = lift_keypoints(seen, model, causal=True, image_planes=False)
+    planes = lift_keypoints(seen, model, causal=True)
+    online = OnlineReprojection()
+    stepped = np.stack(
+        [online.step(q, xy) for q, xy in zip(plain.local_quats, seen.xy, strict=True)]
+    )
+    np.testing.assert_allclose(planes.local_quats, stepped, atol=1e-12)
+    np.testing.assert_array_equal(
+        planes.local_quats[: MIN_FRAMES - 1], plain.local_quats[: MIN_FRAMES - 1]
+    )
+    assert not np.allclose(planes.local_quats[MIN_FRAMES:], plain.local_quats[MIN_FRAMES:])
+    short = KeypointSequence(seen.xy[:40], seen.confidence[:40], seen.valid[:40], seen.fps)
+    np.testing.assert_allclose(
+        lift_keypoints(short, model, causal=True).local_quats, planes.local_quats[:40], atol=1e-12
+    )
+    online.reset()
+    assert online.camera is None
 
 
 def test_convert_lifting_turns_bones_into_the_image_planes(truth: HumanMotion) -> None:

@@ -97,3 +97,28 @@ def test_remote_bind_needs_permission(runtime: Agnostic2DRuntime) -> None:
         UdpKeypointSource(runtime, "0.0.0.0", 0)
     with pytest.raises(SourceError, match="not loopback"):
         open_source("udp-keypoints://0.0.0.0:9751")
+
+
+def test_the_stream_lifts_as_the_causal_clip_lifting_does() -> None:
+    """Packet by packet, the source's frames (keypoint model's step, then the image's planes
+    with the camera fitted so far) are lift_keypoints(causal=True) of the same keypoints; with
+    image_planes=False, the model's step alone."""
+    from robot_retarget.keypoints.demo_2d import demo_keypoints
+    from robot_retarget.keypoints.lift import lift_keypoints
+    from robot_retarget.keypoints.sequence import KeypointSequence
+    from robot_retarget.motion.synthetic import demo_motion
+    from robot_retarget.runtime.agnostic2d import load_keypoint_model
+
+    model = load_keypoint_model()
+    seq = demo_keypoints(demo_motion(fps=30.0).frames(0, 40))
+    for planes in (True, False):
+        src = UdpKeypointSource(model, "127.0.0.1", 0, image_planes=planes)
+        frames = []
+        for t in range(seq.num_frames):
+            person = np.concatenate([np.nan_to_num(seq.xy[t]), seq.confidence[t][:, None]], 1)
+            frame = src.handle_packet(encode_keypoints(t + 1, t / 30.0, [person]), 0.0)
+            assert frame is not None
+            frames.append(frame.local_quats)
+        same = KeypointSequence(seq.xy, seq.confidence, seq.valid, seq.fps)
+        lifted = lift_keypoints(same, model, causal=True, image_planes=planes)
+        np.testing.assert_allclose(np.stack(frames), lifted.local_quats, atol=1e-9)

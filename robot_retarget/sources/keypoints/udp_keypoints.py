@@ -6,8 +6,10 @@ unless ``allow_remote``; a ``token``, when set, must be in every packet; sequenc
 timestamps checked by SequenceFilter; a receiver thread decodes into a bounded queue and
 nothing a sender does can raise in, or stall, the control loop. Each accepted packet's people
 go through the person rule (robot_retarget.sources.keypoints.person_choice), the followed
-person's points through the causal keypoint model (Agnostic2DStep); the frame delivered is the
-model's 22 canonical rotations on the reference skeleton, the root held at its standing height
+person's points through the causal keypoint model (Agnostic2DStep) and, unless
+``image_planes=False``, the image's planes with the camera fitted on the frames so far
+(robot_retarget.keypoints.online_reprojection); the frame delivered is the model's 22 canonical
+rotations on the reference skeleton, the root held at its standing height
 (robot_retarget.keypoints.lift). A packet in which fewer than 6 of the 12 body points are seen
 (nobody followed in view) delivers no frame (counted as ``no_person``): the control loop holds,
 then goes to the safe pose, as when a sender falls silent.
@@ -22,6 +24,7 @@ import numpy as np
 
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, NUM_KEYPOINTS
 from robot_retarget.keypoints.lift import MIN_BODY_POINTS, standing_root
+from robot_retarget.keypoints.online_reprojection import OnlineReprojection
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
@@ -52,6 +55,7 @@ class UdpKeypointSource(UdpDatagramSource):
         nominal_fps: float = 30.0,
         max_queue: int = DEFAULT_QUEUE_FRAMES,
         clock: Callable[[], float] = time.monotonic,
+        image_planes: bool = True,
     ) -> None:
         super().__init__(
             host,
@@ -67,6 +71,7 @@ class UdpKeypointSource(UdpDatagramSource):
         self._root = standing_root(self._skeleton)
         self._tracker = PersonTracker()
         self._step = model.online()
+        self._planes = OnlineReprojection(self._skeleton) if image_planes else None
 
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
         """Decode, check and lift one datagram; queue and return the frame, or count the drop."""
@@ -87,6 +92,8 @@ class UdpKeypointSource(UdpDatagramSource):
         else:
             xy, _conf, valid = pkt.people[chosen]
         local = self._step.step(xy, valid)  # the model sees every camera frame, in time
+        if self._planes is not None:  # so does the camera fit, as lift_keypoints(causal=True)
+            local = self._planes.step(local, np.where(valid[:, None], xy, np.nan))
         if int(valid[_BODY].sum()) < MIN_BODY_POINTS:
             # Nobody (or too little of a body) in view: no frame, so the control loop holds
             # and, after 2 s, goes to the safe pose, as for a silent sender.

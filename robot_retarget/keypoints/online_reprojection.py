@@ -1,0 +1,81 @@
+"""The image's planes for ``stream``: :mod:`robot_retarget.keypoints.reprojection` one camera
+frame at a time.
+
+``convert`` fits the camera on the whole clip and smooths the keypoints with the frames after
+each one; a live stream has neither. Here the camera is fitted on the frames so far: the
+candidate elevations' direction costs are sums over frames, so they are kept as running sums;
+the image scale is a running mean of its logarithm, the principal point a running mean of the
+hip centre. Until :data:`MIN_FRAMES` frames have shown a body the pose passes through as the
+model gave it. The keypoints are used as they arrive (no smoothing: it would look ahead or lag).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from robot_retarget.array_types import FloatArray
+from robot_retarget.keypoints.coco17 import Coco
+from robot_retarget.keypoints.reprojection import (
+    ELEVATIONS_DEG,
+    CameraEstimate,
+    MatrixPose,
+    camera_distance,
+    candidate_rotations,
+    direction_costs,
+    image_scales,
+    turn_into_planes,
+)
+from robot_retarget.skeleton.canonical import default_canonical_skeleton
+from robot_retarget.skeleton.skeleton import Skeleton
+
+MIN_FRAMES = 15
+"""Frames with a body seen before the camera is trusted (0.5 s at 30 fps)."""
+
+
+class OnlineReprojection:
+    """``step(local (22, 4), xy (17, 2, NaN where missing)) → (22, 4)``: the model's answer
+    for one camera frame turned into the image's planes, the camera fitted on the frames so
+    far (module docstring). ``reset()`` forgets the camera (a new sender, maybe a new one)."""
+
+    def __init__(self, skeleton: Skeleton | None = None) -> None:
+        self.skeleton = skeleton or default_canonical_skeleton()
+        self._rots = candidate_rotations()
+        self._distance = camera_distance(self.skeleton)
+        self.reset()
+
+    def reset(self) -> None:
+        self._costs = np.zeros(len(self._rots))
+        self._log_scale = 0.0
+        self._scales = 0
+        self._hips = np.zeros(2)
+        self._hips_seen = 0
+
+    @property
+    def camera(self) -> CameraEstimate | None:
+        """The camera fitted so far, or None before :data:`MIN_FRAMES` frames with a body."""
+        if min(self._scales, self._hips_seen) < MIN_FRAMES:
+            return None
+        best = int(np.argmin(self._costs))
+        focal = math.exp(self._log_scale / self._scales) * self._distance
+        principal = self._hips / self._hips_seen
+        return CameraEstimate(math.radians(ELEVATIONS_DEG[best]), focal, principal, self._distance)
+
+    def step(self, local: FloatArray, xy: FloatArray) -> FloatArray:
+        pose = MatrixPose.of(self.skeleton, np.asarray(local, dtype=np.float64)[None])
+        obs = np.asarray(xy, dtype=np.float64)[None]
+        rel = pose.positions  # the root is at the origin
+        self._costs += direction_costs(rel, obs, self._rots, self._distance)
+        scale = image_scales(rel, obs, self._rots[int(np.argmin(self._costs))], self._distance)
+        if len(scale) and math.isfinite(scale[0]) and scale[0] > 0.0:
+            self._log_scale += math.log(scale[0])
+            self._scales += 1
+        hips = 0.5 * (obs[0, Coco.left_hip] + obs[0, Coco.right_hip])
+        if np.isfinite(hips).all():
+            self._hips += hips
+            self._hips_seen += 1
+        camera = self.camera
+        if camera is None:
+            return pose.local[0]
+        return turn_into_planes(pose, obs, camera)[0]
