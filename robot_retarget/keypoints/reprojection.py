@@ -285,14 +285,23 @@ class MatrixPose:
 
 def _turns(a: FloatArray, b: FloatArray) -> FloatArray:
     """Rotation matrices (..., 3, 3) taking unit vectors ``a`` onto unit vectors ``b`` by the
-    shortest arc (Rodrigues). The turns here never reach 90°: a direction is moved toward a
-    plane it makes less than 90° with."""
+    shortest arc (Rodrigues: c·I + [v]× + v vᵀ / (1 + c), v = a × b, c = a · b). The turns here
+    never reach 90°: a direction is moved toward a plane it makes less than 90° with."""
     v = quat.cross(a, b)
     c = np.sum(a * b, axis=-1)[..., None, None]
-    k = np.zeros((*v.shape, 3))
-    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return np.asarray(np.eye(3) + k + (k @ k) / np.maximum(1.0 + c, 1e-12), dtype=np.float64)
+    padded = np.concatenate([v, np.zeros((*v.shape[:-1], 1))], axis=-1)  # index 3 is 0
+    skew = (padded[..., _SKEW_INDEX] * _SKEW_SIGN).reshape(*v.shape, 3)
+    outer = v[..., :, None] * v[..., None, :]
+    return np.asarray(c * np.eye(3) + skew + outer / np.maximum(1.0 + c, 1e-12))
+
+
+_SKEW_INDEX = np.array([3, 2, 1, 2, 3, 0, 1, 0, 3])
+_SKEW_SIGN = np.array([0.0, -1.0, 1.0, 1.0, 0.0, -1.0, -1.0, 1.0, 0.0])
+# a ⊗ b = (a[_LEFT_INDEX] · _LEFT_SIGN) @ b: one product instead of the sixteen of quat.mul.
+_LEFT_INDEX = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+_LEFT_SIGN = np.array(
+    [[1.0, -1.0, -1.0, -1.0], [1.0, 1.0, -1.0, 1.0], [1.0, 1.0, 1.0, -1.0], [1.0, -1.0, 1.0, 1.0]]
+)
 
 
 def turn_into_planes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> FloatArray:
@@ -347,7 +356,9 @@ def turn_into_planes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -
             axis=-1,
         )
     out = np.array(pose.local)
-    out[:, _CHANGED] = quat.normalize(quat.mul(q_change, pose.local[:, _CHANGED]))
+    left = q_change[..., _LEFT_INDEX] * _LEFT_SIGN  # q_change ⊗ · as a matrix
+    turned = (left @ pose.local[:, _CHANGED][..., None])[..., 0]
+    out[:, _CHANGED] = turned / np.linalg.norm(turned, axis=-1, keepdims=True)
     return out
 
 
