@@ -1,4 +1,5 @@
-"""The lifted pose turned to agree with the image it came from (``convert``).
+"""The lifted pose turned to agree with the image it came from (``convert``; ``stream`` runs
+the same turns frame by frame: robot_retarget.keypoints.online_reprojection).
 
 The keypoint model reads 2D keypoints and answers 3D rotations, and its bones do not project
 back exactly onto the keypoints they came from. What the image does say, whatever the depth,
@@ -7,12 +8,12 @@ two end points. This module
 
 1. estimates the camera from the lifted motion and the keypoints (:func:`estimate_camera`):
    its elevation, by projecting the lifted pose through each candidate and keeping the one
-   under which its bones point where the keypoints' do, and its focal length from the image
-   scale. Two things one image sequence cannot tell are assumed: the principal point
-   is the performer's median hip centre in the image (the camera points at the performer), and
-   the camera stands :data:`ASSUMED_DISTANCE_HEIGHTS` body heights away (about 5.5 m from a
-   1.7 m adult). The distance only sets how far the rays spread across the body: the README
-   gives the error for cameras at 2.5 m and 8 m.
+   under which its upper limbs and torso point where the keypoints' do, and its focal length
+   from the image scale. Two things one image sequence cannot tell are assumed: the principal
+   point is the performer's median hip centre in the image (the camera points at the
+   performer), and the camera stands :data:`ASSUMED_DISTANCE_HEIGHTS` body heights away
+   (about 5.5 m from a 1.7 m adult). The distance only sets how far the rays spread across the
+   body: the README gives the error for cameras at 2.5 m and 8 m.
 2. turns the torso (hip centre → shoulder centre, about the spine) into its plane, then each
    limb bone (upper arms, forearms, thighs, shins) by the smallest rotation that takes it
    toward its plane (:func:`reproject`): fully where the bone lies across the view, less where
@@ -21,7 +22,9 @@ two end points. This module
    and toes follow their bones; the head and arms follow the torso.
 
 The keypoints are smoothed over time first (Gaussian, σ = one 30 fps frame; a missing point
-stays missing), and a bone with an end point missing keeps the model's direction.
+stays missing), a bone with an end point missing keeps the model's direction, and the turned
+pose is smoothed over time as the keypoints were (the turns carry what noise they still have;
+on subjects 02, 05 and 13 the lifted performer 6.18° → 6.07°, σ of 1.5 frames 6.12°, 2: 6.26°).
 """
 
 from __future__ import annotations
@@ -60,12 +63,15 @@ LIMB_BONES: tuple[tuple[Joint, Joint, Coco, Coco], ...] = (
     (Joint.RightUpLeg, Joint.RightLeg, Coco.right_hip, Coco.right_knee),
     (Joint.RightLeg, Joint.RightFoot, Coco.right_knee, Coco.right_ankle),
 )
-# What fits the camera: the limb bones, the shoulder and hip lines and the torso's sides.
-_FIT_SEGMENTS = [(b[0], b[1]) for b in LIMB_BONES] + [
+# What fits the camera: the upper arms and thighs, the shoulder and hip lines and the torso's
+# sides (not the forearms and shins: wrists and ankles are the noisiest keypoints; on subjects
+# 02, 05 and 13 leaving them out took the lifted performer from 6.18° to 6.16°, and to 6.04°
+# with the turned pose smoothed).
+_FIT_SEGMENTS = [(b[0], b[1]) for b in LIMB_BONES[::2]] + [
     (Joint.LeftArm, Joint.RightArm), (Joint.LeftUpLeg, Joint.RightUpLeg),
     (Joint.LeftUpLeg, Joint.LeftArm), (Joint.RightUpLeg, Joint.RightArm),
 ]  # fmt: skip
-_FIT_KEYPOINTS = [(b[2], b[3]) for b in LIMB_BONES] + [
+_FIT_KEYPOINTS = [(b[2], b[3]) for b in LIMB_BONES[::2]] + [
     (Coco.left_shoulder, Coco.right_shoulder), (Coco.left_hip, Coco.right_hip),
     (Coco.left_hip, Coco.left_shoulder), (Coco.right_hip, Coco.right_shoulder),
 ]  # fmt: skip
@@ -103,14 +109,13 @@ class CameraEstimate:
         return np.concatenate([p, np.full((*p.shape[:-1], 1), self.focal_px)], axis=-1)
 
 
-def smooth_keypoints(xy: FloatArray, valid: BoolArray, fps: float) -> FloatArray:
-    """``xy`` (T, 17, 2) smoothed over time by a Gaussian of σ = :data:`SMOOTH_S` seconds,
-    over the frames where each point is seen (missing points stay NaN)."""
+def _gaussian_in_time(values: FloatArray, weight: FloatArray, fps: float) -> FloatArray:
+    """``values`` (T, ...) averaged over time by a Gaussian of σ = :data:`SMOOTH_S` seconds,
+    each frame counted by its ``weight`` (T, ...) (0: not seen); where nothing nearby was seen
+    the result is 0."""
     sigma = SMOOTH_S * fps
     radius = max(1, int(np.ceil(3.0 * sigma)))
     kernel = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
-    w = np.asarray(valid, dtype=np.float64)
-    filled = np.where(w[..., None] > 0, xy, 0.0)
 
     def conv(a: FloatArray) -> FloatArray:
         pad = np.pad(a, [(radius, radius)] + [(0, 0)] * (a.ndim - 1))
@@ -119,9 +124,24 @@ def smooth_keypoints(xy: FloatArray, valid: BoolArray, fps: float) -> FloatArray
             out += k * pad[i : i + a.shape[0]]
         return out
 
-    weight = conv(w)
-    smoothed = conv(filled) / np.maximum(weight, 1e-12)[..., None]
+    total = conv(weight)
+    return np.asarray(conv(values * weight[..., None]) / np.maximum(total, 1e-12)[..., None])
+
+
+def smooth_keypoints(xy: FloatArray, valid: BoolArray, fps: float) -> FloatArray:
+    """``xy`` (T, 17, 2) smoothed over time by a Gaussian of σ = :data:`SMOOTH_S` seconds,
+    over the frames where each point is seen (missing points stay NaN)."""
+    w = np.asarray(valid, dtype=np.float64)
+    smoothed = _gaussian_in_time(np.where(w[..., None] > 0, xy, 0.0), w, fps)
     return np.where(w[..., None] > 0, smoothed, np.nan)
+
+
+def smooth_rotations(local: FloatArray, fps: float) -> FloatArray:
+    """Local rotations (T, J, 4) smoothed over time as the keypoints are (each joint's
+    quaternions made continuous, averaged, normalised)."""
+    q = quat.make_continuous(local, axis=0)
+    smoothed = _gaussian_in_time(q, np.ones(q.shape[:-1]), fps)
+    return np.asarray(smoothed / np.linalg.norm(smoothed, axis=-1, keepdims=True))
 
 
 @functools.lru_cache(maxsize=256)  # the live step asks every frame
@@ -251,7 +271,8 @@ def reproject(motion: HumanMotion, sequence: KeypointSequence) -> HumanMotion:
     if camera is None:
         return motion
     pose = MatrixPose.of(motion.skeleton, np.asarray(motion.local_quats))
-    local = turn_into_planes(pose, xy, camera)
+    # The turns carry what noise the smoothed keypoints still have: smoothed again, as they are.
+    local = smooth_rotations(turn_into_planes(pose, xy, camera), motion.fps)
     return HumanMotion(
         motion.skeleton, local, motion.root_pos, motion.fps, source_path=motion.source_path
     )

@@ -20,6 +20,7 @@ from robot_retarget.keypoints.reprojection import (
     estimate_camera,
     reproject,
     smooth_keypoints,
+    smooth_rotations,
 )
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.keypoints.synthetic import CLEAN, render_keypoints
@@ -74,11 +75,17 @@ def test_camera_elevation_is_found_from_a_true_pose(truth: HumanMotion) -> None:
         assert cam.focal_px == pytest.approx(1000.0, rel=0.1)
 
 
+def _smoothed(motion: HumanMotion) -> HumanMotion:
+    """``motion`` smoothed over time as reproject smooths the turned pose."""
+    local = smooth_rotations(np.asarray(motion.local_quats), motion.fps)
+    return HumanMotion(motion.skeleton, local, motion.root_pos, motion.fps)
+
+
 def test_a_true_pose_is_left_where_it_is(truth: HumanMotion) -> None:
-    # Only the keypoints' smoothing (σ = one frame) moves it: the fast forearms by < 1° on
-    # average (< 0.1° unsmoothed).
+    # Only smoothing moves it: the keypoints' (σ = one frame) by < 1° on average at the fast
+    # forearms (< 0.1° unsmoothed), and the pose's own, as for any pose.
     out = reproject(truth, _seen(truth, 15.0))
-    assert _segment_error_deg(truth, out).mean(axis=0).max() < 1.0
+    assert _segment_error_deg(_smoothed(truth), out).mean(axis=0).max() < 1.0
 
 
 def test_a_bone_turned_across_the_view_is_turned_back(truth: HumanMotion) -> None:
@@ -98,9 +105,22 @@ def test_a_bone_with_a_missing_end_keeps_the_models_direction(truth: HumanMotion
     xy[:, Coco.left_wrist] = np.nan
     valid[:, Coco.left_wrist] = False
     out = reproject(bent, KeypointSequence(xy, seen.confidence, valid, seen.fps))
-    # It moves only with the torso's turn (here < 0.001°: the torso was not bent).
-    np.testing.assert_allclose(_segment_error_deg(bent, out)[:, 2], 0.0, atol=0.01)
+    # It moves only with the torso's turn (here < 0.001°: the torso was not bent) and the
+    # smoothing over time.
+    np.testing.assert_allclose(_segment_error_deg(_smoothed(bent), out)[:, 2], 0.0, atol=0.01)
     assert _segment_error_deg(bent, reproject(bent, seen))[:, 2].mean() > 5.0
+
+
+def test_rotation_smoothing_averages_rotations_whatever_their_signs() -> None:
+    rng = np.random.default_rng(2)
+    base = quat.normalize(rng.normal(size=(1, 22, 4)))
+    noisy = quat.normalize(base + 0.05 * rng.normal(size=(30, 22, 4)))
+    flipped = noisy.copy()
+    flipped[::2] *= -1.0  # the same rotations, every other frame written with the other sign
+    out = smooth_rotations(flipped, 30.0)
+    np.testing.assert_allclose(np.linalg.norm(out, axis=-1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(quat.angle_between(out, smooth_rotations(noisy, 30.0)), 0, atol=1e-7)
+    assert quat.angle_between(out, base).mean() < 0.8 * quat.angle_between(noisy, base).mean()
 
 
 def test_keypoint_smoothing_keeps_missing_points_missing() -> None:
