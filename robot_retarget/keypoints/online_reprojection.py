@@ -21,17 +21,21 @@ from robot_retarget.keypoints.reprojection import (
     ELEVATIONS_DEG,
     CameraEstimate,
     MatrixPose,
+    apply_changes,
     camera_distance,
     candidate_rotations,
     direction_costs,
     image_scales,
-    turn_into_planes,
+    plane_changes,
 )
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton
 
 MIN_FRAMES = 15
 """Frames with a body seen before the camera is trusted (0.5 s at 30 fps)."""
+CHANGE_RATE = 0.3
+"""Each frame's turns move the applied ones this share of the way (an exponential average:
+the keypoints' frame-to-frame noise is in the turns, the model's error they correct is not)."""
 
 
 class OnlineReprojection:
@@ -51,6 +55,7 @@ class OnlineReprojection:
         self._scales = 0
         self._hips = np.zeros(2)
         self._hips_seen = 0
+        self._changes: FloatArray | None = None
 
     @property
     def camera(self) -> CameraEstimate | None:
@@ -78,4 +83,9 @@ class OnlineReprojection:
         camera = self.camera
         if camera is None:
             return pose.local[0]
-        return turn_into_planes(pose, obs, camera)[0]
+        changes = plane_changes(pose, obs, camera)[0]
+        if self._changes is not None:  # both have w > 0: a normalised lerp is a fine average
+            changes = self._changes + CHANGE_RATE * (changes - self._changes)
+            changes /= np.linalg.norm(changes, axis=-1, keepdims=True)
+        self._changes = changes
+        return apply_changes(pose.local, changes[None])[0]

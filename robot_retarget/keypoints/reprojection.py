@@ -16,15 +16,15 @@ two end points. This module
    body: the README gives the error for cameras at 2.5 m and 8 m.
 2. turns the torso (hip centre → shoulder centre, about the spine) into its plane, then each
    limb bone (upper arms, forearms, thighs, shins) by the smallest rotation that takes it
-   toward its plane (:func:`reproject`): fully where the bone lies across the view, less where
+   toward its plane (:func:`plane_changes`): fully where the bone lies across the view, less where
    it points along the camera's axis, whose plane the keypoints' noise decides (the torso
    hardly ever does; weighting it too cost 0.3–0.6° on it on subjects 02 and 13). Hands, feet
    and toes follow their bones; the head and arms follow the torso.
 
 The keypoints are smoothed over time first (Gaussian, σ = one 30 fps frame; a missing point
-stays missing), a bone with an end point missing keeps the model's direction, and the turned
-pose is smoothed over time as the keypoints were (the turns carry what noise they still have;
-on subjects 02, 05 and 13 the lifted performer 6.18° → 6.07°, σ of 1.5 frames 6.12°, 2: 6.26°).
+stays missing), a bone with an end point missing keeps the model's direction, and the turns
+themselves are smoothed over time (:data:`CHANGE_SMOOTH_S`): they carry what noise the
+keypoints still have, while the model's error they correct changes more slowly.
 """
 
 from __future__ import annotations
@@ -47,6 +47,10 @@ from robot_retarget.skeleton.skeleton import Skeleton
 ASSUMED_DISTANCE_HEIGHTS = 3.25
 ELEVATIONS_DEG = np.arange(-20.0, 60.5, 1.0)  # candidates: training draws −10…45°
 SMOOTH_S = 1.0 / 30.0
+CHANGE_SMOOTH_S = 2.0 / 30.0
+"""The turns are smoothed over time with this σ (on subjects 02, 05 and 13: the lifted
+performer 6.05° with the turned pose smoothed as the keypoints are, 5.94° with the turns
+smoothed at σ = 2 frames instead, 5.99° at 1, 5.96° at 3, 6.07° at 5)."""
 ALONG_VIEW_SCALE = 0.4
 """A bone whose direction has image-plane length m (unit vector, camera frame) is turned a
 share m² / (m² + ALONG_VIEW_SCALE²) of the way into its plane (chosen on subjects 02, 05, 13)."""
@@ -65,7 +69,7 @@ LIMB_BONES: tuple[tuple[Joint, Joint, Coco, Coco], ...] = (
 )
 # What fits the camera: the upper arms and thighs, the shoulder and hip lines and the torso's
 # sides (not the forearms and shins: wrists and ankles are the noisiest keypoints; on subjects
-# 02, 05 and 13 leaving them out took the lifted performer from 6.18° to 6.16°, and to 6.04°
+# 02, 05 and 13 leaving them out took the lifted performer from 6.18° to 6.16°, 6.07° → 6.04°
 # with the turned pose smoothed).
 _FIT_SEGMENTS = [(b[0], b[1]) for b in LIMB_BONES[::2]] + [
     (Joint.LeftArm, Joint.RightArm), (Joint.LeftUpLeg, Joint.RightUpLeg),
@@ -86,7 +90,7 @@ _LIMB_JOINTS, _LIMB_CHILDREN, _LIMB_KEY_STARTS, _LIMB_KEY_ENDS = (
 # The joints whose local rotation the turns change: the spine's first joint (the torso) and
 # the limb bones' (each turned, and the arms' parents turned with the torso). Hands, feet and
 # toes keep their local rotations: they move with the bone they hang from.
-_CHANGED = np.array([Joint.Spine, *(b[0] for b in LIMB_BONES)], dtype=np.int64)
+CHANGED = np.array([Joint.Spine, *(b[0] for b in LIMB_BONES)], dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -109,11 +113,13 @@ class CameraEstimate:
         return np.concatenate([p, np.full((*p.shape[:-1], 1), self.focal_px)], axis=-1)
 
 
-def _gaussian_in_time(values: FloatArray, weight: FloatArray, fps: float) -> FloatArray:
-    """``values`` (T, ...) averaged over time by a Gaussian of σ = :data:`SMOOTH_S` seconds,
-    each frame counted by its ``weight`` (T, ...) (0: not seen); where nothing nearby was seen
-    the result is 0."""
-    sigma = SMOOTH_S * fps
+def _gaussian_in_time(
+    values: FloatArray, weight: FloatArray, fps: float, sigma_s: float
+) -> FloatArray:
+    """``values`` (T, ...) averaged over time by a Gaussian of σ = ``sigma_s`` seconds, each
+    frame counted by its ``weight`` (T, ...) (0: not seen); where nothing nearby was seen the
+    result is 0."""
+    sigma = sigma_s * fps
     radius = max(1, int(np.ceil(3.0 * sigma)))
     kernel = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
 
@@ -132,15 +138,15 @@ def smooth_keypoints(xy: FloatArray, valid: BoolArray, fps: float) -> FloatArray
     """``xy`` (T, 17, 2) smoothed over time by a Gaussian of σ = :data:`SMOOTH_S` seconds,
     over the frames where each point is seen (missing points stay NaN)."""
     w = np.asarray(valid, dtype=np.float64)
-    smoothed = _gaussian_in_time(np.where(w[..., None] > 0, xy, 0.0), w, fps)
+    smoothed = _gaussian_in_time(np.where(w[..., None] > 0, xy, 0.0), w, fps, SMOOTH_S)
     return np.where(w[..., None] > 0, smoothed, np.nan)
 
 
-def smooth_rotations(local: FloatArray, fps: float) -> FloatArray:
-    """Local rotations (T, J, 4) smoothed over time as the keypoints are (each joint's
-    quaternions made continuous, averaged, normalised)."""
-    q = quat.make_continuous(local, axis=0)
-    smoothed = _gaussian_in_time(q, np.ones(q.shape[:-1]), fps)
+def smooth_rotations(rotations: FloatArray, fps: float, sigma_s: float) -> FloatArray:
+    """Rotations (T, J, 4) smoothed over time by a Gaussian of σ = ``sigma_s`` seconds (each
+    joint's quaternions made continuous, averaged, normalised)."""
+    q = quat.make_continuous(rotations, axis=0)
+    smoothed = _gaussian_in_time(q, np.ones(q.shape[:-1]), fps, sigma_s)
     return np.asarray(smoothed / np.linalg.norm(smoothed, axis=-1, keepdims=True))
 
 
@@ -271,8 +277,10 @@ def reproject(motion: HumanMotion, sequence: KeypointSequence) -> HumanMotion:
     if camera is None:
         return motion
     pose = MatrixPose.of(motion.skeleton, np.asarray(motion.local_quats))
-    # The turns carry what noise the smoothed keypoints still have: smoothed again, as they are.
-    local = smooth_rotations(turn_into_planes(pose, xy, camera), motion.fps)
+    # The turns carry what noise the smoothed keypoints still have; the model's error they
+    # correct changes more slowly: they are smoothed again, over a longer time.
+    changes = smooth_rotations(plane_changes(pose, xy, camera), motion.fps, CHANGE_SMOOTH_S)
+    local = apply_changes(pose.local, changes)
     return HumanMotion(
         motion.skeleton, local, motion.root_pos, motion.fps, source_path=motion.source_path
     )
@@ -325,10 +333,21 @@ _LEFT_SIGN = np.array(
 )
 
 
-def turn_into_planes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> FloatArray:
-    """Local rotations (T, 22, 4) of ``pose`` (heading frame) with the torso and then each limb
-    bone turned toward the planes of the keypoints ``xy`` (T, 17, 2) seen by ``camera``
-    (module docstring). Joints whose local rotation does not change keep their quaternions."""
+def apply_changes(local: FloatArray, changes: FloatArray) -> FloatArray:
+    """Local rotations (T, 22, 4) with :data:`CHANGED` joints' turned by ``changes``
+    (T, len(CHANGED), 4), each applied on the left of its joint's local rotation."""
+    out = np.array(local)
+    left = changes[..., _LEFT_INDEX] * _LEFT_SIGN  # change ⊗ · as a matrix
+    turned = (left @ out[:, CHANGED][..., None])[..., 0]
+    out[:, CHANGED] = turned / np.linalg.norm(turned, axis=-1, keepdims=True)
+    return out
+
+
+def plane_changes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> FloatArray:
+    """How ``pose`` (heading frame) turns with the torso and then each limb bone turned toward
+    the planes of the keypoints ``xy`` (T, 17, 2) seen by ``camera`` (module docstring): the
+    changes (T, len(CHANGED), 4, w > 0) of the :data:`CHANGED` joints' local rotations, for
+    :func:`apply_changes` (the other joints' do not change)."""
     rot = camera.rotation()
     glob = pose.global_m.copy()
     pos = pose.positions
@@ -358,9 +377,9 @@ def turn_into_planes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -
     # parents, or keep theirs: hands, feet, toes). Each change is a turn of under 180° (at
     # most two turns of under 90°), so its quaternion comes from the trace, w > 0, and the
     # result stays in its joint's hemisphere.
-    parents = [pose.skeleton.parents[j] for j in _CHANGED]
-    before_m = np.swapaxes(pose.global_m[:, parents], -1, -2) @ pose.global_m[:, _CHANGED]
-    after_m = np.swapaxes(glob[:, parents], -1, -2) @ glob[:, _CHANGED]
+    parents = [pose.skeleton.parents[j] for j in CHANGED]
+    before_m = np.swapaxes(pose.global_m[:, parents], -1, -2) @ pose.global_m[:, CHANGED]
+    after_m = np.swapaxes(glob[:, parents], -1, -2) @ glob[:, CHANGED]
     change = after_m @ np.swapaxes(before_m, -1, -2)
     trace = change[..., 0, 0] + change[..., 1, 1] + change[..., 2, 2]
     if (trace < -0.9).any():  # past ~160°: Shepperd's method, robust everywhere
@@ -376,11 +395,7 @@ def turn_into_planes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -
             ],
             axis=-1,
         )
-    out = np.array(pose.local)
-    left = q_change[..., _LEFT_INDEX] * _LEFT_SIGN  # q_change ⊗ · as a matrix
-    turned = (left @ pose.local[:, _CHANGED][..., None])[..., 0]
-    out[:, _CHANGED] = turned / np.linalg.norm(turned, axis=-1, keepdims=True)
-    return out
+    return np.asarray(q_change)
 
 
 def _upper_body(skeleton: Skeleton) -> list[int]:
