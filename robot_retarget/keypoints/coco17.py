@@ -53,6 +53,18 @@ BODY_JOINTS: dict[int, int] = {
     Coco.right_ankle: Joint.RightFoot,
 }
 
+# The limb bones between body keypoints: (joint, its child, keypoint at the joint, at the child).
+LIMB_BONES: tuple[tuple[Joint, Joint, Coco, Coco], ...] = (
+    (Joint.LeftArm, Joint.LeftForeArm, Coco.left_shoulder, Coco.left_elbow),
+    (Joint.LeftForeArm, Joint.LeftHand, Coco.left_elbow, Coco.left_wrist),
+    (Joint.RightArm, Joint.RightForeArm, Coco.right_shoulder, Coco.right_elbow),
+    (Joint.RightForeArm, Joint.RightHand, Coco.right_elbow, Coco.right_wrist),
+    (Joint.LeftUpLeg, Joint.LeftLeg, Coco.left_hip, Coco.left_knee),
+    (Joint.LeftLeg, Joint.LeftFoot, Coco.left_knee, Coco.left_ankle),
+    (Joint.RightUpLeg, Joint.RightLeg, Coco.right_hip, Coco.right_knee),
+    (Joint.RightLeg, Joint.RightFoot, Coco.right_knee, Coco.right_ankle),
+)
+
 # Face keypoints in the Head joint's frame of a 1.7 m adult (metres; canonical rest: Y up,
 # facing +Z, left = +X), scaled with the performer's height. Approximate anthropometry: the
 # estimator's own noise is larger than their error.

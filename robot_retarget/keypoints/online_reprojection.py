@@ -1,5 +1,5 @@
 """The image's planes for ``stream``: :mod:`robot_retarget.keypoints.reprojection` one camera
-frame at a time.
+frame at a time, the camera (:mod:`robot_retarget.keypoints.camera_fit`) fitted so far.
 
 ``convert`` fits the camera on the whole clip and smooths the keypoints with the frames after
 each one; a live stream has neither. Here the camera is fitted on the frames so far: the
@@ -16,18 +16,16 @@ import math
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.keypoints.coco17 import Coco
-from robot_retarget.keypoints.reprojection import (
+from robot_retarget.keypoints.camera_fit import (
     ELEVATIONS_DEG,
     CameraEstimate,
-    MatrixPose,
-    apply_changes,
     camera_distance,
     candidate_rotations,
     direction_costs,
     image_scales,
-    plane_changes,
 )
+from robot_retarget.keypoints.coco17 import Coco
+from robot_retarget.keypoints.reprojection import MatrixPose, apply_changes, plane_changes
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton
 

@@ -12,16 +12,11 @@ from hypothesis import strategies as st
 from robot_retarget.evaluation.robot.metrics import segment_angles
 from robot_retarget.evaluation.robot.segments import human_body_points
 from robot_retarget.geometry import quaternion as quat
+from robot_retarget.keypoints.camera_fit import ASSUMED_DISTANCE_HEIGHTS, estimate_camera
 from robot_retarget.keypoints.coco17 import Coco
 from robot_retarget.keypoints.lift import lift_keypoints
 from robot_retarget.keypoints.online_reprojection import MIN_FRAMES, OnlineReprojection
-from robot_retarget.keypoints.reprojection import (
-    ASSUMED_DISTANCE_HEIGHTS,
-    estimate_camera,
-    reproject,
-    smooth_keypoints,
-    smooth_rotations,
-)
+from robot_retarget.keypoints.reprojection import reproject, smooth_keypoints, smooth_rotations
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.keypoints.synthetic import CLEAN, EstimatorNoise, render_keypoints
 from robot_retarget.keypoints.virtual_camera import VirtualCamera
