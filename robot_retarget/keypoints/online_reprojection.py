@@ -82,8 +82,10 @@ class OnlineReprojection:
         if camera is None:
             return pose.local[0]
         changes = plane_changes(pose, obs, camera)[0]
-        if self._changes is not None:  # both have w > 0: a normalised lerp is a fine average
-            changes = self._changes + CHANGE_RATE * (changes - self._changes)
-            changes /= np.linalg.norm(changes, axis=-1, keepdims=True)
+        if self._changes is None:  # the turns fade in from none: no jolt when the camera is set
+            self._changes = np.tile([1.0, 0.0, 0.0, 0.0], (len(changes), 1))
+        # Both have w > 0: a normalised lerp is a fine average.
+        changes = self._changes + CHANGE_RATE * (changes - self._changes)
+        changes /= np.linalg.norm(changes, axis=-1, keepdims=True)
         self._changes = changes
         return apply_changes(pose.local, changes[None])[0]

@@ -228,3 +228,23 @@ def test_the_stream_averages_its_turns_over_frames(
     averaged = jitter()
     monkeypatch.setattr(online, "CHANGE_RATE", 1.0)
     assert averaged < 0.8 * jitter()
+
+
+def test_the_streams_turns_fade_in(truth: HumanMotion, monkeypatch: pytest.MonkeyPatch) -> None:
+    """When the camera is first fitted the turns start from none (a share CHANGE_RATE of the
+    way): the robot does not jolt from the model's pose to the turned one."""
+    import robot_retarget.keypoints.online_reprojection as online
+
+    seen = _noisy(truth, 10.0)
+    model = load_keypoint_model(None)
+    plain = lift_keypoints(seen, model, causal=True, image_planes=False).local_quats
+    first = MIN_FRAMES - 1  # the first frame with a camera
+
+    def moved() -> float:
+        q = lift_keypoints(seen, model, causal=True).local_quats
+        return float(quat.angle_between(q[first], plain[first]).max())
+
+    faded = moved()
+    monkeypatch.setattr(online, "CHANGE_RATE", 1.0)
+    full = moved()
+    assert 0.0 < faded < 0.4 * full
