@@ -7,6 +7,19 @@ import numpy as np
 from robot_retarget.nn.inference import LoadedModel, OnlineRetargeter
 from robot_retarget.runtime.loader import online_retargeter
 
+HALF_TURN_MARGIN_RAD = 1e-3
+
+
+def clear_of_half_turns(quats: np.ndarray) -> bool:
+    """True when no frame-to-frame change of the root's heading (the turning rate the models
+    read, wrapped to (−π, π]) lies within HALF_TURN_MARGIN_RAD of ±π. A turn of half a circle
+    in one frame has two equally good signs, and the torch model (float32) and its twin
+    (float64) may round it to opposite ones: there the streams are both right and differ."""
+    w, x, y, z = (quats[:, 0, k] for k in range(4))
+    yaw = np.arctan2(-2.0 * (x * z - w * y), 1.0 - 2.0 * (y * y + z * z))
+    turn = np.pi - np.mod(np.pi - np.diff(yaw), 2.0 * np.pi)
+    return bool(np.all(np.abs(turn) < np.pi - HALF_TURN_MARGIN_RAD))
+
 
 def assert_same_stream(
     model: LoadedModel,

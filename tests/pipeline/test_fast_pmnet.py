@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -17,7 +17,7 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.runtime.loader import online_retargeter
 from robot_retarget.runtime.pmnet import FastPMnetRetargeter
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
-from tests.pipeline.stream_equality import assert_same_stream
+from tests.pipeline.stream_equality import assert_same_stream, clear_of_half_turns
 
 TOL = 2e-5
 
@@ -56,7 +56,9 @@ def test_equals_the_torch_model_on_the_demo(demo: HumanMotion, op3: RobotConfig)
 )
 def test_equals_the_torch_model_on_wild_streams(rotvecs: np.ndarray, root: np.ndarray) -> None:
     src = default_canonical_skeleton().offsets
-    _assert_same_stream(_pmnet(1), src, 0.4 * src, quat.from_rotation_vector(rotvecs), root)
+    quats = quat.from_rotation_vector(rotvecs)
+    assume(clear_of_half_turns(quats))
+    _assert_same_stream(_pmnet(1), src, 0.4 * src, quats, root)
 
 
 def test_centred_movement_stays_on_torch(demo: HumanMotion) -> None:
@@ -64,3 +66,14 @@ def test_centred_movement_stays_on_torch(demo: HumanMotion) -> None:
     src = demo.skeleton.offsets
     assert isinstance(online_retargeter(_pmnet(causal=False), src, src), OnlineRetargeter)
     assert _pmnet(causal=False).model.runtime() is None
+
+
+def test_a_half_turn_in_one_frame_is_left_out_of_the_comparison() -> None:
+    """The wild-stream property holds away from a heading change of ±π in one frame, where the
+    sign of the turning rate is a coin toss of rounding (found by hypothesis: the root rolled
+    2 rad about its forward axis, its left-right axis then pointing back along itself)."""
+    rotvecs = np.full((6, 22, 3), -4.845476667818081e-08)
+    rotvecs[5, 0, 2] = 2.0
+    assert not clear_of_half_turns(quat.from_rotation_vector(rotvecs))
+    rotvecs[5, 0] = (0.0, 1.5, 0.0)  # a quarter turn or so about the up axis
+    assert clear_of_half_turns(quat.from_rotation_vector(rotvecs))

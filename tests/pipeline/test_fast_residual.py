@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 import pytest
 import torch
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -23,7 +23,7 @@ from robot_retarget.runtime.model import OnlineStep
 from robot_retarget.runtime.residual import FastResidualRetargeter
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.skeleton.foot_lock_spec import LEGS
-from tests.pipeline.stream_equality import assert_same_stream
+from tests.pipeline.stream_equality import assert_same_stream, clear_of_half_turns
 
 # float32 torch against float64 numpy; outputs are unit quaternions and metres.
 TOL = 2e-5
@@ -112,7 +112,9 @@ def test_the_foot_lock_judges_speed_at_the_rate_it_runs(
 def test_equals_the_torch_model_on_wild_streams(rotvecs: np.ndarray, root: np.ndarray) -> None:
     """Arbitrary rotations (dropped joints, flips) and root jumps."""
     src = default_canonical_skeleton().offsets
-    _assert_same_stream(_trained_like(1), src, 0.4 * src, quat.from_rotation_vector(rotvecs), root)
+    quats = quat.from_rotation_vector(rotvecs)
+    assume(clear_of_half_turns(quats))
+    _assert_same_stream(_trained_like(1), src, 0.4 * src, quats, root)
 
 
 def test_wrong_shapes_raise(demo: HumanMotion) -> None:
