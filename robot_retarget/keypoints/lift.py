@@ -20,6 +20,7 @@ import numpy as np
 
 from robot_retarget.array_types import BoolArray
 from robot_retarget.errors import MotionFormatError
+from robot_retarget.keypoints.camera_fit import CameraEstimate
 from robot_retarget.keypoints.coco17 import BODY_JOINTS
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.motion.human_motion import HumanMotion
@@ -51,6 +52,7 @@ class LiftedKeypoints:
     motion: HumanMotion
     frames_held: int  # frames without enough body points: the last seen pose held
     missing_fraction: float  # share of all points marked missing
+    camera: CameraEstimate | None  # fitted for the image's planes (None: off, or no fit)
 
 
 def lift_keypoints(
@@ -66,6 +68,13 @@ def lift_keypoints(
     and limb bones turned into the planes the keypoints put them in, with the camera fitted on
     the whole clip (robot_retarget.keypoints.reprojection) or, when causal, on the frames so
     far as ``stream`` does (robot_retarget.keypoints.online_reprojection)."""
+    return _lift(sequence, model, causal=causal, image_planes=image_planes)[0]
+
+
+def _lift(
+    sequence: KeypointSequence, model: Agnostic2DRuntime, *, causal: bool, image_planes: bool
+) -> tuple[HumanMotion, CameraEstimate | None]:
+    """:func:`lift_keypoints` and the camera the image's planes used (the last one, causal)."""
     skeleton = default_canonical_skeleton()
     # Averaged with the mirrored image's answer, as the live step does (Agnostic2DRuntime.online).
     quats = model.run_clip(sequence.xy, sequence.valid, causal=causal, mirror_average=True)
@@ -78,19 +87,23 @@ def lift_keypoints(
             path=sequence.source or None,
         )
     motion = HumanMotion(skeleton, quats, root, sequence.fps, source_path=sequence.source)
+    camera = None
     if image_planes and causal:
         from robot_retarget.keypoints.online_reprojection import OnlineReprojection
 
         planes = OnlineReprojection(skeleton)
         quats = np.stack([planes.step(q, xy) for q, xy in zip(quats, sequence.xy, strict=True)])
+        camera = planes.camera
     elif image_planes:
-        from robot_retarget.keypoints.reprojection import reproject
+        from robot_retarget.keypoints.reprojection import reproject_with_camera
 
-        quats = np.asarray(reproject(motion, sequence).local_quats)
+        turned, camera = reproject_with_camera(motion, sequence)
+        quats = np.asarray(turned.local_quats)
     # Frames without a body hold the last seen pose (the first seen one before it).
     last = np.maximum.accumulate(np.where(seen, np.arange(len(seen)), -1))
     last[last < 0] = int(np.argmax(seen))
-    return HumanMotion(skeleton, quats[last], root, sequence.fps, source_path=sequence.source)
+    lifted = HumanMotion(skeleton, quats[last], root, sequence.fps, source_path=sequence.source)
+    return lifted, camera
 
 
 def load_keypoint_motion(
@@ -113,7 +126,7 @@ def load_keypoint_motion(
             seq.xy[:max_frames], seq.confidence[:max_frames], seq.valid[:max_frames], seq.fps,
             seq.source,
         )  # fmt: skip
-    motion = lift_keypoints(
+    motion, camera = _lift(
         seq, load_keypoint_model(model, whole_clip=True), causal=False, image_planes=image_planes
     )
-    return LiftedKeypoints(motion, int((~body_seen(seq)).sum()), seq.missing_fraction)
+    return LiftedKeypoints(motion, int((~body_seen(seq)).sum()), seq.missing_fraction, camera)

@@ -118,20 +118,28 @@ def reproject(motion: HumanMotion, sequence: KeypointSequence) -> HumanMotion:
     """``motion`` (the keypoint model's answer for ``sequence``, frame for frame, heading frame)
     with its torso and limb bones turned toward the planes the image puts them in (module
     docstring); as it is where the keypoints cannot tell the camera (:func:`estimate_camera`)."""
+    return reproject_with_camera(motion, sequence)[0]
+
+
+def reproject_with_camera(
+    motion: HumanMotion, sequence: KeypointSequence
+) -> tuple[HumanMotion, CameraEstimate | None]:
+    """:func:`reproject`, and the camera it fitted (None: none could be, the motion as it is)."""
     if motion.num_frames != sequence.num_frames:
         raise ValueError(f"motion has {motion.num_frames} frames, keypoints {sequence.num_frames}")
     xy = smooth_keypoints(sequence.xy, sequence.valid, sequence.fps)
     camera = estimate_camera(motion, xy)
     if camera is None:
-        return motion
+        return motion, None
     pose = MatrixPose.of(motion.skeleton, np.asarray(motion.local_quats))
     # The turns carry what noise the smoothed keypoints still have; the model's error they
     # correct changes more slowly: they are smoothed again, over a longer time.
     changes = smooth_rotations(plane_changes(pose, xy, camera), motion.fps, CHANGE_SMOOTH_S)
     local = apply_changes(pose.local, changes)
-    return HumanMotion(
+    turned = HumanMotion(
         motion.skeleton, local, motion.root_pos, motion.fps, source_path=motion.source_path
     )
+    return turned, camera
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ cannot be read or converted comes back as a :class:`ClipReport` with its error, 
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,6 +22,7 @@ from typing import TYPE_CHECKING
 from robot_retarget.errors import ModelLoadError, RetargetError
 
 if TYPE_CHECKING:
+    from robot_retarget.keypoints.camera_fit import CameraEstimate
     from robot_retarget.motion.bvh import BvhClip
     from robot_retarget.motion.human_motion import HumanMotion
     from robot_retarget.nn.models.san import SAN
@@ -64,6 +66,18 @@ class ClipJob:
 
     def outputs(self) -> list[Path]:
         return [p for p in (self.out, self.bvh_out, self.preview) if p is not None]
+
+
+def _camera_summary(camera: CameraEstimate | None, image_planes: bool) -> str:
+    """What the image's planes assumed of the camera, for convert's log line."""
+    if not image_planes:
+        return "image planes off (--no-image-planes)"
+    if camera is None:
+        return "image planes skipped: the keypoints could not tell a camera"
+    return (
+        f"bones turned into the image's planes, camera estimated at "
+        f"{math.degrees(camera.elevation_rad):.0f}° elevation, focal {camera.focal_px:.0f} px"
+    )
 
 
 @dataclass(frozen=True)
@@ -149,7 +163,8 @@ class ClipConverter:
                 log(
                     f"{clip}: {motion.num_frames} keypoint frames at {motion.fps:g} fps, "
                     f"{lifted.missing_fraction:.1%} of points missing, {lifted.frames_held} "
-                    "frame(s) without a body (the last seen pose held)"
+                    "frame(s) without a body (the last seen pose held); "
+                    + _camera_summary(lifted.camera, opt.keypoint_image_planes)
                 )
         elif self.native_model is not None:
             bvh, motion = load_bvh_motion(clip, max_frames=opt.max_frames)
