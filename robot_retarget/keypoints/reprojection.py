@@ -23,18 +23,21 @@ keypoints still have, while the model's error they correct changes more slowly.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-from robot_retarget.array_types import BoolArray, FloatArray
+from robot_retarget.array_types import BoolArray, FloatArray, IntArray
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.camera_fit import CameraEstimate, estimate_camera
 from robot_retarget.keypoints.coco17 import LIMB_BONES, Coco
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.runtime.frame import matrices, qmul
 from robot_retarget.skeleton.canonical import Joint
 from robot_retarget.skeleton.skeleton import Skeleton
+from robot_retarget.skeleton.tree_tables import ancestor_matrix, pointer_jumps
 
 SMOOTH_S = 1.0 / 30.0
 CHANGE_SMOOTH_S = 2.0 / 30.0
@@ -156,16 +159,27 @@ class MatrixPose:
 
     @classmethod
     def of(cls, skeleton: Skeleton, local: FloatArray) -> MatrixPose:
-        local_m = quat.to_matrix(local)
-        glob = np.empty_like(local_m)
-        pos = np.zeros((*local.shape[:-1], 3))
-        glob[:, 0] = local_m[:, 0]
-        offsets = skeleton.offsets
-        for idx, par in skeleton.depth_levels:  # one batched product per tree depth
-            parent = glob[:, par]
-            pos[:, idx] = pos[:, par] + (parent @ offsets[idx][..., None])[..., 0]
-            glob[:, idx] = parent @ local_m[:, idx]
-        return cls(skeleton, local, glob, pos)
+        t, j = local.shape[:2]
+        local_m = matrices(local.reshape(t * j, 4)).reshape(t, j, 3, 3)
+        # Global rotations by pointer jumping (log₂ depth rounds; index j holds the identity),
+        # positions as the ancestor matrix times the bone vectors (robot_retarget.skeleton
+        # .tree_tables): a few products for a whole frame, as the live networks' steps do.
+        glob = np.concatenate([local_m, np.broadcast_to(np.eye(3), (t, 1, 3, 3))], axis=1)
+        jumps, parent, chain = _tree_tables(skeleton.parents)
+        for ancestors in jumps:
+            glob = glob[:, ancestors] @ glob
+        bones = (glob[:, parent] @ skeleton.offsets[..., None])[..., 0]
+        return cls(skeleton, local, glob[:, :j], chain @ bones)
+
+
+@functools.lru_cache(maxsize=8)
+def _tree_tables(parents: tuple[int, ...]) -> tuple[list[IntArray], IntArray, FloatArray]:
+    jumps = pointer_jumps(parents)
+    return (
+        [np.array(a) for a in jumps],
+        np.array(jumps[0][: len(parents)]),
+        ancestor_matrix(parents),
+    )
 
 
 def _turns(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -182,19 +196,13 @@ def _turns(a: FloatArray, b: FloatArray) -> FloatArray:
 
 _SKEW_INDEX = np.array([3, 2, 1, 2, 3, 0, 1, 0, 3])
 _SKEW_SIGN = np.array([0.0, -1.0, 1.0, 1.0, 0.0, -1.0, -1.0, 1.0, 0.0])
-# a ⊗ b = (a[_LEFT_INDEX] · _LEFT_SIGN) @ b: one product instead of the sixteen of quat.mul.
-_LEFT_INDEX = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
-_LEFT_SIGN = np.array(
-    [[1.0, -1.0, -1.0, -1.0], [1.0, 1.0, -1.0, 1.0], [1.0, 1.0, 1.0, -1.0], [1.0, -1.0, 1.0, 1.0]]
-)
 
 
 def apply_changes(local: FloatArray, changes: FloatArray) -> FloatArray:
     """Local rotations (T, 22, 4) with :data:`CHANGED` joints' turned by ``changes``
     (T, len(CHANGED), 4), each applied on the left of its joint's local rotation."""
     out = np.array(local)
-    left = changes[..., _LEFT_INDEX] * _LEFT_SIGN  # change ⊗ · as a matrix
-    turned = (left @ out[:, CHANGED][..., None])[..., 0]
+    turned = qmul(changes, out[:, CHANGED])
     out[:, CHANGED] = turned / np.linalg.norm(turned, axis=-1, keepdims=True)
     return out
 
