@@ -91,7 +91,7 @@ def _lift(
     if image_planes and causal:
         from robot_retarget.keypoints.online_reprojection import OnlineReprojection
 
-        planes = OnlineReprojection(skeleton)
+        planes = OnlineReprojection(skeleton, fps=sequence.fps)
         quats = np.stack([planes.step(q, xy) for q, xy in zip(quats, sequence.xy, strict=True)])
         camera = planes.camera
     elif image_planes:

@@ -73,7 +73,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
     bystander = people.copy()
     bystander[..., :2] = bystander[..., :2] * 0.4 + 20.0
     keypoint_step = load_keypoint_model(args.keypoint_model).online()
-    planes = OnlineReprojection()
+    planes = OnlineReprojection(fps=CAMERA_FPS)
     tracker = PersonTracker()
     model = load_runtime_model(args.model or default_model_name())
     step = RetargetStep(config, model, motion.skeleton, foot_lock=args.foot_lock)

@@ -15,7 +15,7 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.camera_fit import ASSUMED_DISTANCE_HEIGHTS, estimate_camera
 from robot_retarget.keypoints.coco17 import Coco
 from robot_retarget.keypoints.lift import lift_keypoints
-from robot_retarget.keypoints.online_reprojection import MIN_FRAMES, OnlineReprojection
+from robot_retarget.keypoints.online_reprojection import OnlineReprojection
 from robot_retarget.keypoints.reprojection import reproject, smooth_keypoints, smooth_rotations
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.keypoints.synthetic import CLEAN, EstimatorNoise, render_keypoints
@@ -24,6 +24,9 @@ from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.runtime.agnostic2d import load_keypoint_model
 from robot_retarget.skeleton.canonical import Joint
+
+
+MIN_FRAMES = OnlineReprojection(fps=30.0).min_frames  # at the test clips' frame rate
 
 
 def _seen(motion: HumanMotion, elevation_deg: float) -> KeypointSequence:
@@ -248,3 +251,13 @@ def test_the_streams_turns_fade_in(truth: HumanMotion, monkeypatch: pytest.Monke
     monkeypatch.setattr(online, "CHANGE_RATE", 1.0)
     full = moved()
     assert 0.0 < faded < 0.4 * full
+
+
+def test_the_streams_timing_is_in_seconds_whatever_the_frame_rate() -> None:
+    """A 60 fps camera waits as long before turning, and averages the turns over as long, as a
+    30 fps one."""
+    at30, at60 = OnlineReprojection(fps=30.0), OnlineReprojection(fps=60.0)
+    assert (at30.min_frames, at60.min_frames) == (15, 30)
+    assert (1.0 - at60.rate) ** 2 == pytest.approx(1.0 - at30.rate)
+    with pytest.raises(ValueError, match="fps must be positive"):
+        OnlineReprojection(fps=0.0)

@@ -71,7 +71,7 @@ class UdpKeypointSource(UdpDatagramSource):
         self._root = standing_root(self._skeleton)
         self._tracker = PersonTracker()
         self._step = model.online()
-        self._planes = OnlineReprojection(self._skeleton) if image_planes else None
+        self._planes = OnlineReprojection(self._skeleton, fps=nominal_fps) if image_planes else None
 
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
         """Decode, check and lift one datagram; queue and return the frame, or count the drop."""
