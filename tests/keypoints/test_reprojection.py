@@ -25,7 +25,6 @@ from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.runtime.agnostic2d import load_keypoint_model
 from robot_retarget.skeleton.canonical import Joint
 
-
 MIN_FRAMES = OnlineReprojection(fps=30.0).min_frames  # at the test clips' frame rate
 
 
