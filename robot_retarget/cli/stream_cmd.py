@@ -252,6 +252,8 @@ def run(args: argparse.Namespace) -> int:
     print(result.stats.line())
     print(loop.budget.report())
     print(source.stats.summary())
+    for line in source.report_lines():
+        print(line)
     print(loop.safety.report())
     print(f"solver fallbacks: {result.step.fallbacks}")
     modes = ", ".join(f"{m.value}" for _, m in result.transitions)

@@ -230,6 +230,10 @@ class MotionSource(ABC):
     def describe(self) -> str:
         return type(self).__name__
 
+    def report_lines(self) -> tuple[str, ...]:
+        """What this source has to say at the end of a stream, beside its statistics."""
+        return ()
+
     def __enter__(self) -> MotionSource:
         self.start()
         return self

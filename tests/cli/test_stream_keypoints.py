@@ -97,6 +97,7 @@ def test_keypoint_packets_drive_the_simulator(
     assert check_limits(config, traj.q, 1 / traj.fps, q_start=config.init_pose).ok
     out = capsys.readouterr()
     assert "source: 90 received, 90 accepted, 0 dropped" in out.out
+    assert "image planes: camera estimated at" in out.out
     assert "safety: 0 of" in out.out
     # The performer's arm movements reached the robot (not a robot held in one pose).
     late = np.asarray(traj.q)[len(traj.q) // 2 :]

@@ -122,3 +122,8 @@ def test_the_stream_lifts_as_the_causal_clip_lifting_does() -> None:
         same = KeypointSequence(seq.xy, seq.confidence, seq.valid, seq.fps)
         lifted = lift_keypoints(same, model, causal=True, image_planes=planes)
         np.testing.assert_allclose(np.stack(frames), lifted.local_quats, atol=1e-9)
+        # stream prints the camera the planes fitted (or that they were off).
+        (line,) = src.report_lines()
+        assert ("camera estimated at" in line) if planes else ("off" in line)
+    fresh = UdpKeypointSource(model, "127.0.0.1", 0)
+    assert "no camera fitted" in fresh.report_lines()[0]

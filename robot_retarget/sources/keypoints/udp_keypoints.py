@@ -17,6 +17,7 @@ then goes to the safe pose, as when a sender falls silent.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -72,6 +73,18 @@ class UdpKeypointSource(UdpDatagramSource):
         self._tracker = PersonTracker()
         self._step = model.online()
         self._planes = OnlineReprojection(self._skeleton, fps=nominal_fps) if image_planes else None
+
+    def report_lines(self) -> tuple[str, ...]:
+        """The camera the image's planes fitted (stream prints it at the end)."""
+        if self._planes is None:
+            return ("image planes: off (--no-image-planes)",)
+        camera = self._planes.camera
+        if camera is None:
+            return ("image planes: no camera fitted (less than 0.5 s of frames with a body)",)
+        return (
+            f"image planes: camera estimated at {math.degrees(camera.elevation_rad):.0f}° "
+            f"elevation, focal {camera.focal_px:.0f} px",
+        )
 
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
         """Decode, check and lift one datagram; queue and return the frame, or count the drop."""
