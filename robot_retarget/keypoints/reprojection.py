@@ -28,16 +28,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_retarget.array_types import BoolArray, FloatArray, IntArray
+from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.camera_fit import CameraEstimate, estimate_camera
 from robot_retarget.keypoints.coco17 import LIMB_BONES, Coco
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.motion.human_motion import HumanMotion
-from robot_retarget.runtime.frame import matrices, qmul
+from robot_retarget.runtime.frame import TreeKinematics, matrices, qmul
 from robot_retarget.skeleton.canonical import Joint
 from robot_retarget.skeleton.skeleton import Skeleton
-from robot_retarget.skeleton.tree_tables import ancestor_matrix, pointer_jumps
 
 SMOOTH_S = 1.0 / 30.0
 CHANGE_SMOOTH_S = 2.0 / 30.0
@@ -161,25 +160,14 @@ class MatrixPose:
     def of(cls, skeleton: Skeleton, local: FloatArray) -> MatrixPose:
         t, j = local.shape[:2]
         local_m = matrices(local.reshape(t * j, 4)).reshape(t, j, 3, 3)
-        # Global rotations by pointer jumping (log₂ depth rounds; index j holds the identity),
-        # positions as the ancestor matrix times the bone vectors (robot_retarget.skeleton
-        # .tree_tables): a few products for a whole frame, as the live networks' steps do.
-        glob = np.concatenate([local_m, np.broadcast_to(np.eye(3), (t, 1, 3, 3))], axis=1)
-        jumps, parent, chain = _tree_tables(skeleton.parents)
-        for ancestors in jumps:
-            glob = glob[:, ancestors] @ glob
-        bones = (glob[:, parent] @ skeleton.offsets[..., None])[..., 0]
-        return cls(skeleton, local, glob[:, :j], chain @ bones)
+        # Pointer jumping, as the live networks' steps do: a few products for a whole frame.
+        glob, positions = _kinematics(skeleton.parents).pose(local_m, skeleton.offsets)
+        return cls(skeleton, local, glob, positions)
 
 
 @functools.lru_cache(maxsize=8)
-def _tree_tables(parents: tuple[int, ...]) -> tuple[list[IntArray], IntArray, FloatArray]:
-    jumps = pointer_jumps(parents)
-    return (
-        [np.array(a) for a in jumps],
-        np.array(jumps[0][: len(parents)]),
-        ancestor_matrix(parents),
-    )
+def _kinematics(parents: tuple[int, ...]) -> TreeKinematics:
+    return TreeKinematics(parents)
 
 
 def _turns(a: FloatArray, b: FloatArray) -> FloatArray:

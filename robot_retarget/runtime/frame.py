@@ -6,8 +6,8 @@ runtime.tdcn, runtime.copy, runtime.residual) share what this module holds:
 
 - quaternion products and rotation matrices written as few array ops
   (tables from robot_retarget.geometry.quaternion_tables);
-- :class:`TreeKinematics`: root-relative joint positions by pointer jumping, as the torch
-  ``FrameKinematics``;
+- :class:`TreeKinematics`: root-relative joint positions (and, for a batch, global rotations)
+  by pointer jumping, as the torch ``FrameKinematics``;
 - :class:`FrameStream`: the numpy ``FeatureStream`` — heading removal, heading-frame root
   velocity and turning rate of each source frame, integration of the predicted root
   velocity from the source's first position and heading, and the heading put back on the
@@ -67,6 +67,18 @@ class TreeKinematics:
             glob = glob[anc] @ glob
         bones = np.einsum("jab,jb->ja", glob[self._parent], offsets)
         return np.asarray(self._chain @ bones, dtype=np.float64)
+
+    def pose(self, rot: FloatArray, offsets: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Global rotation matrices (T, J, 3, 3) and root-relative positions (T, J, 3) of
+        frames of local rotation matrices (T, J, 3, 3), rest offsets (J, 3): :meth:`positions`
+        for a batch, with the globals (kept apart: one frame's positions alone, on the live
+        networks' hot path, are 1.3× faster unbatched)."""
+        t, j = rot.shape[:2]
+        glob = np.concatenate([rot, np.broadcast_to(np.eye(3), (t, 1, 3, 3))], axis=1)
+        for anc in self._jumps:
+            glob = glob[:, anc] @ glob
+        bones = (glob[:, self._parent] @ offsets[..., None])[..., 0]
+        return glob[:, :j], np.asarray(self._chain @ bones, dtype=np.float64)
 
 
 def f32_layer(layer: tuple[FloatArray, FloatArray]) -> tuple[F32Array, F32Array]:
