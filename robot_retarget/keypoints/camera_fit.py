@@ -141,17 +141,22 @@ def estimate_camera(motion: HumanMotion, xy: FloatArray) -> CameraEstimate | Non
     proportions are not the reference skeleton's, and a fit of positions tilts the camera to
     make up the difference (on subjects 02 and 13 its elevation was 5–17° off at 30°, the
     directions' 1–10°). The focal length then comes from the median image scale."""
-    distance = camera_distance(motion.skeleton)
     pos = motion.positions()
-    rel: FloatArray = np.asarray(pos - pos[:, :1])
+    return fit_camera(np.asarray(pos - pos[:, :1]), motion.skeleton, xy)
+
+
+def fit_camera(rel: FloatArray, skeleton: Skeleton, xy: FloatArray) -> CameraEstimate | None:
+    """:func:`estimate_camera` from the joint positions ``rel`` (T, 22, 3) relative to the hips
+    of a pose on ``skeleton`` (for a caller that has them already)."""
+    distance = camera_distance(skeleton)
     obs = np.asarray(xy, dtype=np.float64)
+    seen = np.isfinite(obs[:, _FIT_KEY_ENDS] - obs[:, _FIT_KEY_STARTS]).all(axis=-1)
+    if not seen.any():
+        return None
     rots = candidate_rotations()
     costs = np.zeros(len(rots))
     for t in range(0, len(rel), _COST_CHUNK):  # bounded memory on long clips
         costs += direction_costs(rel[t : t + _COST_CHUNK], obs[t : t + _COST_CHUNK], rots, distance)
-    seen = np.isfinite(obs[:, _FIT_KEY_ENDS] - obs[:, _FIT_KEY_STARTS]).all(axis=-1)
-    if not seen.any():
-        return None
     best = int(np.argmin(costs))
     scales = image_scales(rel, obs, rots[best], distance)
     focal = float(np.median(scales)) * distance if len(scales) else math.nan

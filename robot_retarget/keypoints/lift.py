@@ -86,7 +86,6 @@ def _lift(
             "threshold: nobody to follow (check the estimator's output, or lower its threshold)",
             path=sequence.source or None,
         )
-    motion = HumanMotion(skeleton, quats, root, sequence.fps, source_path=sequence.source)
     camera = None
     if image_planes and causal:
         from robot_retarget.keypoints.online_reprojection import OnlineReprojection
@@ -97,6 +96,7 @@ def _lift(
     elif image_planes:
         from robot_retarget.keypoints.reprojection import reproject_with_camera
 
+        motion = HumanMotion(skeleton, quats, root, sequence.fps, source_path=sequence.source)
         turned, camera = reproject_with_camera(motion, sequence)
         quats = np.asarray(turned.local_quats)
     # Frames without a body hold the last seen pose (the first seen one before it).

@@ -30,7 +30,7 @@ import numpy as np
 
 from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.keypoints.camera_fit import CameraEstimate, estimate_camera
+from robot_retarget.keypoints.camera_fit import CameraEstimate, fit_camera
 from robot_retarget.keypoints.coco17 import LIMB_BONES, Coco
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.motion.human_motion import HumanMotion
@@ -119,7 +119,8 @@ def _unit(v: FloatArray) -> FloatArray:
 def reproject(motion: HumanMotion, sequence: KeypointSequence) -> HumanMotion:
     """``motion`` (the keypoint model's answer for ``sequence``, frame for frame, heading frame)
     with its torso and limb bones turned toward the planes the image puts them in (module
-    docstring); as it is where the keypoints cannot tell the camera (:func:`estimate_camera`)."""
+    docstring); as it is where the keypoints cannot tell the camera
+    (robot_retarget.keypoints.camera_fit)."""
     return reproject_with_camera(motion, sequence)[0]
 
 
@@ -130,10 +131,10 @@ def reproject_with_camera(
     if motion.num_frames != sequence.num_frames:
         raise ValueError(f"motion has {motion.num_frames} frames, keypoints {sequence.num_frames}")
     xy = smooth_keypoints(sequence.xy, sequence.valid, sequence.fps)
-    camera = estimate_camera(motion, xy)
+    pose = MatrixPose.of(motion.skeleton, np.asarray(motion.local_quats))
+    camera = fit_camera(pose.positions, motion.skeleton, xy)  # root at the origin
     if camera is None:
         return motion, None
-    pose = MatrixPose.of(motion.skeleton, np.asarray(motion.local_quats))
     # The turns carry what noise the smoothed keypoints still have; the model's error they
     # correct changes more slowly: they are smoothed again, over a longer time.
     changes = smooth_rotations(plane_changes(pose, xy, camera), motion.fps, CHANGE_SMOOTH_S)

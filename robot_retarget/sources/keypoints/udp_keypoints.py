@@ -25,7 +25,7 @@ import numpy as np
 
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, NUM_KEYPOINTS
 from robot_retarget.keypoints.lift import MIN_BODY_POINTS, standing_root
-from robot_retarget.keypoints.online_reprojection import OnlineReprojection
+from robot_retarget.keypoints.online_reprojection import MIN_SECONDS, OnlineReprojection
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
@@ -80,7 +80,10 @@ class UdpKeypointSource(UdpDatagramSource):
             return ("image planes: off (--no-image-planes)",)
         camera = self._planes.camera
         if camera is None:
-            return ("image planes: no camera fitted (less than 0.5 s of frames with a body)",)
+            return (
+                f"image planes: no camera fitted (less than {MIN_SECONDS:g} s of frames with a "
+                "body)",
+            )
         return (
             f"image planes: camera estimated at {math.degrees(camera.elevation_rad):.0f}° "
             f"elevation, focal {camera.focal_px:.0f} px",
