@@ -21,12 +21,12 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.array_types import FloatArray
+from robot_retarget.array_types import Float32Array, FloatArray
 from robot_retarget.geometry.quaternion_tables import matrix_table, product_table
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 from robot_retarget.skeleton.tree_tables import ancestor_matrix, pointer_jumps
 
-F32Array = npt.NDArray[np.float32]
+F32Array = Float32Array
 
 NUM_JOINTS = len(CANONICAL_JOINTS)
 _TWO_PI = 2.0 * math.pi

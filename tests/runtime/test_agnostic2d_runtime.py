@@ -283,7 +283,8 @@ def test_mirror_average_is_exactly_mirror_symmetric() -> None:
 
 
 def test_the_mirror_averaged_step_is_the_causal_clip_run_frame_by_frame() -> None:
-    """stream's step (image and mirror, averaged) equals run_clip(causal, mirror_average)."""
+    """stream's step (image and mirror, averaged) equals run_clip(causal, mirror_average), to
+    float32 precision: the step runs in the weights' float32, the clip in float64."""
     rt = load_keypoint_model()
     rng = np.random.default_rng(7)
     xy = rng.uniform(200, 700, (30, 17, 2))
@@ -292,10 +293,10 @@ def test_the_mirror_averaged_step_is_the_causal_clip_run_frame_by_frame() -> Non
     clip = rt.run_clip(xy, valid, causal=True, mirror_average=True)
     step = rt.online()
     online = np.stack([step.step(xy[t], valid[t]) for t in range(30)])
-    assert _angle(online, clip) < 1e-6  # arccos near 1 resolves ~1e-8
+    assert _angle(online, clip) < 2e-5  # float32: ~1e-6 rad here; arccos resolves ~1e-8
     plain = rt.online(mirror_average=False)
     direct = np.stack([plain.step(xy[t], valid[t]) for t in range(30)])
-    assert _angle(direct, rt.run_clip(xy, valid, causal=True)) < 1e-6
+    assert _angle(direct, rt.run_clip(xy, valid, causal=True)) < 2e-5
     assert _angle(direct, online) > 1e-3  # the mirror changes the answer
     step.reset()
     np.testing.assert_allclose(step.step(xy[0], valid[0]), online[0])

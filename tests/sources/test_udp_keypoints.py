@@ -102,7 +102,8 @@ def test_remote_bind_needs_permission(runtime: Agnostic2DRuntime) -> None:
 def test_the_stream_lifts_as_the_causal_clip_lifting_does() -> None:
     """Packet by packet, the source's frames (keypoint model's step, then the image's planes
     with the camera fitted so far) are lift_keypoints(causal=True) of the same keypoints; with
-    image_planes=False, the model's step alone."""
+    image_planes=False, the model's step alone. To float32 precision: the live step runs in the
+    weights' float32, the clip lifting in float64."""
     from robot_retarget.keypoints.demo_2d import demo_keypoints
     from robot_retarget.keypoints.lift import lift_keypoints
     from robot_retarget.keypoints.sequence import KeypointSequence
@@ -121,7 +122,7 @@ def test_the_stream_lifts_as_the_causal_clip_lifting_does() -> None:
             frames.append(frame.local_quats)
         same = KeypointSequence(seq.xy, seq.confidence, seq.valid, seq.fps)
         lifted = lift_keypoints(same, model, causal=True, image_planes=planes)
-        np.testing.assert_allclose(np.stack(frames), lifted.local_quats, atol=1e-9)
+        np.testing.assert_allclose(np.stack(frames), lifted.local_quats, atol=2e-6)
         # stream prints the camera the planes fitted (or that they were off).
         (line,) = src.report_lines()
         assert ("camera estimated at" in line) if planes else ("off" in line)
