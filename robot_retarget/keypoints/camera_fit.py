@@ -37,17 +37,17 @@ _BODY_J = np.array(list(BODY_JOINTS.values()), dtype=np.int64)
 # sides (not the forearms and shins: wrists and ankles are the noisiest keypoints; on subjects
 # 02, 05 and 13 leaving them out took the lifted performer from 6.18° to 6.16°, 6.07° → 6.04°
 # with the turned pose smoothed).
-_FIT_SEGMENTS = [(b[0], b[1]) for b in LIMB_BONES[::2]] + [
+FIT_SEGMENTS = [(b[0], b[1]) for b in LIMB_BONES[::2]] + [
     (Joint.LeftArm, Joint.RightArm), (Joint.LeftUpLeg, Joint.RightUpLeg),
     (Joint.LeftUpLeg, Joint.LeftArm), (Joint.RightUpLeg, Joint.RightArm),
 ]  # fmt: skip
-_FIT_KEYPOINTS = [(b[2], b[3]) for b in LIMB_BONES[::2]] + [
+FIT_KEYPOINTS = [(b[2], b[3]) for b in LIMB_BONES[::2]] + [
     (Coco.left_shoulder, Coco.right_shoulder), (Coco.left_hip, Coco.right_hip),
     (Coco.left_hip, Coco.left_shoulder), (Coco.right_hip, Coco.right_shoulder),
 ]  # fmt: skip
-_FIT_STARTS, _FIT_ENDS = (np.array(c, dtype=np.int64) for c in zip(*_FIT_SEGMENTS, strict=True))
+_FIT_STARTS, _FIT_ENDS = (np.array(c, dtype=np.int64) for c in zip(*FIT_SEGMENTS, strict=True))
 _FIT_KEY_STARTS, _FIT_KEY_ENDS = (
-    np.array(c, dtype=np.int64) for c in zip(*_FIT_KEYPOINTS, strict=True)
+    np.array(c, dtype=np.int64) for c in zip(*FIT_KEYPOINTS, strict=True)
 )
 _COST_CHUNK = 32
 

@@ -7,6 +7,9 @@ candidate elevations' direction costs are sums over frames, so they are kept as 
 the image scale is a running mean of its logarithm, the principal point a running mean of the
 hip centre. Until :data:`MIN_SECONDS` of frames have shown a body the pose passes through as
 the model gave it. The keypoints are used as they arrive (no smoothing: it would look ahead or lag).
+
+A frame runs as three compiled calls (robot_retarget.keypoints.planes_graph: about a tenth of
+the time of the numpy code, which stays as the reference, ``compiled=False``).
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ import math
 
 import numpy as np
 
-from robot_retarget.array_types import FloatArray
+from robot_retarget.array_types import BoolArray, FloatArray
+from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.keypoints.camera_fit import (
     ELEVATIONS_DEG,
     CameraEstimate,
@@ -25,12 +29,17 @@ from robot_retarget.keypoints.camera_fit import (
     image_scales,
 )
 from robot_retarget.keypoints.coco17 import Coco
-from robot_retarget.keypoints.reprojection import MatrixPose, apply_changes, plane_changes
+from robot_retarget.keypoints.planes_graph import fit_function, scale_function, turn_function
+from robot_retarget.keypoints.reprojection import CHANGED, MatrixPose, apply_changes, plane_changes
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton
 
-MIN_SECONDS = 0.5
-"""Frames with a body seen for this long before the camera is trusted (15 at 30 fps)."""
+MIN_SECONDS = 0.1
+"""Frames with a body seen for this long before the camera is trusted (3 at 30 fps). Short:
+the causal model is least sure in a stream's first frames, where the turns help most (on
+subjects 02 and 13, the lifted performer 8.94° / 7.61° with 0.5 s, 8.68° / 7.45° with 0.2 s,
+8.60° / 7.40° with 0.1 s, 8.57° / 7.38° with one frame; the turns fade in, so an early camera
+that is still off does not jolt the pose)."""
 CHANGE_RATE = 0.3
 """At 30 fps each frame's turns move the applied ones this share of the way (an exponential
 average: the keypoints' frame-to-frame noise is in the turns, the model's error they correct
@@ -42,9 +51,12 @@ _RATE_FPS = 30.0
 class OnlineReprojection:
     """``step(local (22, 4), xy (17, 2, NaN where missing)) → (22, 4)``: the model's answer
     for one camera frame turned into the image's planes, the camera fitted on the frames so
-    far (module docstring). ``reset()`` forgets the camera (a new sender, maybe a new one)."""
+    far (module docstring). ``reset()`` forgets the camera (a new sender, maybe a new one).
+    ``compiled=False`` runs the numpy reference instead of the compiled graphs."""
 
-    def __init__(self, skeleton: Skeleton | None = None, fps: float = 30.0) -> None:
+    def __init__(
+        self, skeleton: Skeleton | None = None, fps: float = 30.0, *, compiled: bool = True
+    ) -> None:
         if not (math.isfinite(fps) and fps > 0.0):
             raise ValueError(f"fps must be positive, got {fps}")
         self.skeleton = skeleton or default_canonical_skeleton()
@@ -52,6 +64,7 @@ class OnlineReprojection:
         self.rate = 1.0 - (1.0 - CHANGE_RATE) ** (_RATE_FPS / fps)
         self._rots = candidate_rotations()
         self._distance = camera_distance(self.skeleton)
+        self._calls = _PlanesCalls(self.skeleton, self._distance) if compiled else None
         self.reset()
 
     def reset(self) -> None:
@@ -73,26 +86,85 @@ class OnlineReprojection:
         return CameraEstimate(math.radians(ELEVATIONS_DEG[best]), focal, principal, self._distance)
 
     def step(self, local: FloatArray, xy: FloatArray) -> FloatArray:
+        if self._calls is not None:
+            return self._compiled_step(local, xy)
         pose = MatrixPose.of(self.skeleton, np.asarray(local, dtype=np.float64)[None])
         obs = np.asarray(xy, dtype=np.float64)[None]
         rel = pose.positions  # the root is at the origin
         self._costs += direction_costs(rel, obs, self._rots, self._distance)
         scale = image_scales(rel, obs, self._rots[int(np.argmin(self._costs))], self._distance)
-        if len(scale) and math.isfinite(scale[0]) and scale[0] > 0.0:
-            self._log_scale += math.log(scale[0])
-            self._scales += 1
         hips = 0.5 * (obs[0, Coco.left_hip] + obs[0, Coco.right_hip])
-        if np.isfinite(hips).all():
-            self._hips += hips
-            self._hips_seen += 1
+        self._count_frame(float(scale[0]) if len(scale) else math.nan, len(scale) > 0, hips)
         camera = self.camera
         if camera is None:
             return pose.local[0]
         changes = plane_changes(pose, obs, camera)[0]
         if self._changes is None:  # the turns fade in from none: no jolt when the camera is set
-            self._changes = np.tile([1.0, 0.0, 0.0, 0.0], (len(changes), 1))
+            self._changes = _NO_TURN.reshape(-1, 4)
         # Both have w > 0: a normalised lerp is a fine average.
         changes = self._changes + self.rate * (changes - self._changes)
         changes /= np.linalg.norm(changes, axis=-1, keepdims=True)
         self._changes = changes
         return apply_changes(pose.local, changes[None])[0]
+
+    def _count_frame(self, scale: float, enough: bool, hips: FloatArray) -> None:
+        if enough and math.isfinite(scale) and scale > 0.0:
+            self._log_scale += math.log(scale)
+            self._scales += 1
+        if np.isfinite(hips).all():
+            self._hips += hips
+            self._hips_seen += 1
+
+    def _compiled_step(self, local: FloatArray, xy: FloatArray) -> FloatArray:
+        """:meth:`step` through the compiled graphs (the same numbers to rounding)."""
+        g = self._calls
+        assert g is not None
+        obs = np.asarray(xy, dtype=np.float64)
+        seen: BoolArray = np.asarray(np.isfinite(obs).all(axis=-1), dtype=bool)
+        g.local[:] = np.asarray(local, dtype=np.float64).reshape(-1)
+        g.xy[:] = np.where(seen[:, None], obs, 0.0).reshape(-1)
+        g.seen[:] = seen
+        g.fit()
+        self._costs += g.costs
+        g.rotation[:] = self._rots[int(np.argmin(self._costs))].reshape(-1)
+        g.scale()
+        hips = 0.5 * (obs[Coco.left_hip] + obs[Coco.right_hip])
+        self._count_frame(float(g.scale_out[0]), bool(g.enough[0] > 0.5), hips)
+        camera = self.camera
+        if camera is None:
+            return g.local.reshape(-1, 4).copy()
+        g.turn_rotation[:] = camera.rotation().reshape(-1)
+        g.camera[:2] = camera.principal_px
+        g.camera[2] = camera.focal_px
+        g.applied[:] = _NO_TURN if self._changes is None else self._changes.reshape(-1)
+        g.rate[0] = self.rate
+        g.turn()
+        self._changes = g.applied_next.reshape(-1, 4).copy()
+        return g.turned.reshape(-1, 4).copy()
+
+
+# The turns fade in from none (see step): the identity for every changed joint.
+_NO_TURN = np.tile([1.0, 0.0, 0.0, 0.0], len(CHANGED))
+
+
+class _PlanesCalls:
+    """The three compiled graphs of one skeleton, their arrays bound once and shared (the
+    fit's positions and the keypoints are the scale's and the turn's arguments)."""
+
+    def __init__(self, skeleton: Skeleton, distance: float) -> None:
+        parents = tuple(int(p) for p in skeleton.parents)
+        offsets = np.asarray(skeleton.offsets, dtype=np.float64)
+        self.fit = CompiledFunction(fit_function(parents, offsets, distance))
+        self.local, self.xy, self.seen = self.fit.args
+        positions, self.costs = self.fit.res
+        self.scale = CompiledFunction(
+            scale_function(distance), args=[positions, self.xy, self.seen, None]
+        )
+        self.rotation = self.scale.args[3]
+        self.scale_out, self.enough = self.scale.res
+        self.turn = CompiledFunction(
+            turn_function(parents, offsets),
+            args=[self.local, self.xy, self.seen, None, None, None, None],
+        )
+        self.turn_rotation, self.camera, self.applied, self.rate = self.turn.args[3:]
+        self.turned, self.applied_next = self.turn.res
