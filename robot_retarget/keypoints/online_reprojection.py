@@ -34,12 +34,15 @@ from robot_retarget.keypoints.reprojection import CHANGED, MatrixPose, apply_cha
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton
 
-MIN_SECONDS = 0.1
-"""Frames with a body seen for this long before the camera is trusted (3 at 30 fps). Short:
+MIN_SECONDS = 0.2
+"""Frames with a body seen for this long before the camera is trusted (6 at 30 fps). Short:
 the causal model is least sure in a stream's first frames, where the turns help most (on
 subjects 02 and 13, the lifted performer 8.94° / 7.61° with 0.5 s, 8.68° / 7.45° with 0.2 s,
-8.60° / 7.40° with 0.1 s, 8.57° / 7.38° with one frame; the turns fade in, so an early camera
-that is still off does not jolt the pose)."""
+8.60° / 7.40° with 0.1 s, 8.57° / 7.38° with one frame), but not too short: on the robots
+(three of those clips through four views) 0.1 s cost OP3 0.8° (15.88° against 15.06° / 15.02°
+with 0.2 / 0.5 s: an early camera still off puts an arm on another branch), Poppy the same
+at each (6.26° / 6.27° / 6.25°). The turns fade in, so the camera's first estimate does not
+jolt the pose."""
 CHANGE_RATE = 0.3
 """At 30 fps each frame's turns move the applied ones this share of the way (an exponential
 average: the keypoints' frame-to-frame noise is in the turns, the model's error they correct

@@ -256,7 +256,7 @@ def test_the_streams_timing_is_in_seconds_whatever_the_frame_rate() -> None:
     """A 60 fps camera waits as long before turning, and averages the turns over as long, as a
     30 fps one."""
     at30, at60 = OnlineReprojection(fps=30.0), OnlineReprojection(fps=60.0)
-    assert (at30.min_frames, at60.min_frames) == (3, 6)
+    assert (at30.min_frames, at60.min_frames) == (6, 12)
     assert (1.0 - at60.rate) ** 2 == pytest.approx(1.0 - at30.rate)
     with pytest.raises(ValueError, match="fps must be positive"):
         OnlineReprojection(fps=0.0)
