@@ -24,8 +24,8 @@ from robot_retarget.casadi_jit import compile_graph, memoized_graph
 from robot_retarget.geometry import symbolic_quaternion as sq
 from robot_retarget.keypoints import camera_fit as cf
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, LIMB_BONES, NUM_KEYPOINTS, Coco
-from robot_retarget.keypoints.reprojection import ALONG_VIEW_SCALE, CHANGED
-from robot_retarget.skeleton.canonical import Joint
+from robot_retarget.keypoints.reprojection import ALONG_VIEW_SCALE, CHANGED, upper_body
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 
 Vec = sq.Vec
 
@@ -55,9 +55,9 @@ def _point(xy: ca.SX, k: int) -> tuple[ca.SX, ca.SX]:
     return xy[2 * k], xy[2 * k + 1]
 
 
-def _project(m: FloatArray, p: Vec, distance: float) -> tuple[ca.SX, ca.SX]:
-    """camera_fit._project of one point through one rotation (numbers, row-major 3 × 3)."""
-    x, y, z = (m[r, 0] * p[0] + m[r, 1] * p[1] + m[r, 2] * p[2] for r in range(3))
+def _project(m: sq.Mat, p: Vec, distance: float) -> tuple[ca.SX, ca.SX]:
+    """camera_fit._project of one point through one rotation (row-major 3 × 3)."""
+    x, y, z = sq.rotate(m, p)
     s = 1.0 + z / distance
     return x / s, y / s
 
@@ -78,7 +78,8 @@ def fit_function(parents: tuple[int, ...], offsets: FloatArray, distance: float)
         inv = 1.0 / ca.fmax(weight, 1e-9)
         segments.append((j0, j1, sx * inv, sy * inv, weight))
     costs = []
-    for m in cf.candidate_rotations():
+    for rotation in cf.candidate_rotations():
+        m = _const(rotation.reshape(-1))
         proj = {j: _project(m, pos[j], distance) for s in segments for j in s[:2]}
         total = ca.SX(0.0)
         for j0, j1, dx, dy, weight in segments:
@@ -97,15 +98,14 @@ def scale_function(distance: float) -> ca.Function:
     """``(positions J·3, xy 17·2, seen 17, rotation 9) → (scale, enough)``: camera_fit's image
     scale of one frame; ``enough`` 1 where three or more body points were seen (else the
     scale means nothing)."""
-    pos = ca.SX.sym("positions", 3 * 22)
+    pos = ca.SX.sym("positions", 3 * len(CANONICAL_JOINTS))
     xy = ca.SX.sym("xy", 2 * NUM_KEYPOINTS)
     seen = ca.SX.sym("seen", NUM_KEYPOINTS)
     rot = ca.SX.sym("rotation", 9)
+    m = tuple(rot[i] for i in range(9))
     proj, obs, w = [], [], []
     for k, j in BODY_JOINTS.items():
-        x, y, z = sq.rotate(tuple(rot[i] for i in range(9)), sq.vec_at(pos, j))
-        s = 1.0 + z / distance
-        proj.append((x / s, y / s))
+        proj.append(_project(m, sq.vec_at(pos, j), distance))
         obs.append(_point(xy, k))
         w.append(seen[k])
     count = sum(w[1:], w[0])
@@ -192,14 +192,6 @@ def _from_matrix(m: sq.Mat) -> sq.Quat:
     return tuple(ca.if_else(trace < -0.9, r, d) for r, d in zip(robust, direct, strict=True))
 
 
-def _upper_body(parents: tuple[int, ...]) -> set[int]:
-    inside = {int(Joint.Spine)}
-    for j, p in enumerate(parents):
-        if p in inside:
-            inside.add(j)
-    return inside
-
-
 @memoized_graph
 def turn_function(parents: tuple[int, ...], offsets: FloatArray) -> ca.Function:
     """``(local J·4, xy 17·2, seen 17, rotation 9, camera (cx, cy, focal), applied C·4, rate)
@@ -231,7 +223,7 @@ def turn_function(parents: tuple[int, ...], offsets: FloatArray) -> ca.Function:
     both = seen[lh] * seen[rh] * seen[ls] * seen[rs]
     after = _into_plane(before, _ray(xy, (lh, rh), camera), _ray(xy, (ls, rs), camera), both, False)
     torso = _turn(sq.rotate(rt, before), sq.rotate(rt, after))
-    upper = _upper_body(parents)
+    upper = set(upper_body(parents))
     glob = [sq.matmul(torso, g) if j in upper else g for j, g in enumerate(glob0)]
 
     # Each limb bone on its own (its child keeps its global rotation).

@@ -213,7 +213,7 @@ def plane_changes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> F
     shoulder3 = 0.5 * (pos[:, Joint.LeftArm] + pos[:, Joint.RightArm])
     before = _unit(shoulder3 - hip3) @ rot.T
     after = _into_planes(before, camera.rays(hip2), camera.rays(shoulder2), weighted=False)
-    upper = _upper_body(pose.skeleton)
+    upper = upper_body(pose.skeleton.parents)
     glob[:, upper] = _turns(before @ rot, after @ rot)[:, None] @ glob[:, upper]
 
     # Each limb bone on its own (its child keeps its global rotation), all in one pass.
@@ -251,8 +251,9 @@ def plane_changes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> F
     return np.asarray(q_change)
 
 
-def _upper_body(skeleton: Skeleton) -> list[int]:
-    return _subtree(skeleton.parents, int(Joint.Spine))
+def upper_body(parents: tuple[int, ...]) -> list[int]:
+    """The joints the torso's turn moves: the spine's first joint and everything below it."""
+    return _subtree(parents, int(Joint.Spine))
 
 
 def _subtree(parents: tuple[int, ...], root: int) -> list[int]:

@@ -37,6 +37,7 @@ from robot_retarget.keypoints.normalize import (
     KeypointNormalizer,
     normalize_sequences,
 )
+from robot_retarget.runtime.frame import f32_layer
 from robot_retarget.runtime.npz_file import read_runtime_npz, write_runtime_npz
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 from robot_retarget.skeleton.mirror import mirror_rotations, swap_index
@@ -151,14 +152,10 @@ def _pointwise(x: FloatArray, conv: Conv) -> FloatArray:
     return r
 
 
-def _f32(a: FloatArray) -> Float32Array:
-    return np.ascontiguousarray(a, dtype=np.float32)
-
-
 def _dense(conv: Conv) -> tuple[Float32Array, Float32Array]:
     """A 1 × 1 convolution as a float32 matrix and column bias (the stream step's layers)."""
     w, b = conv
-    return _f32(w[:, :, 0]), _f32(b[:, None])
+    return f32_layer((w[:, :, 0], b[:, None]))
 
 
 def _dense_apply(layer: tuple[Float32Array, Float32Array], x: Float32Array) -> Float32Array:
@@ -318,7 +315,6 @@ class _StreamSteps:
     def __init__(self, weights: Agnostic2DWeights, streams: int) -> None:
         if weights.centered:
             raise ValueError(_LOOKS_AHEAD)
-        self._w = weights
         self._streams = streams
         # In float32, the precision the weights were trained and stored in: a frame's products
         # are matrix-vector ones, bound by reading the weights, so half the bytes is about
@@ -327,7 +323,7 @@ class _StreamSteps:
         for kern, bias in weights.motion:
             out_c, in_c, k = kern.shape
             # Columns ordered (input channel, tap) to match buffer[:, ::d] flattened per stream.
-            self._layers.append((_f32(kern.reshape(out_c, in_c * k)), _f32(bias[:, None]), k))
+            self._layers.append((*f32_layer((kern.reshape(out_c, in_c * k), bias[:, None])), k))
         self._static = [[_dense(c) for c in enc] for enc in (weights.skeleton, weights.view)]
         self._head = [_dense(c) for c in weights.head]
         self._dil = [int(d) for d in weights.dilations]
