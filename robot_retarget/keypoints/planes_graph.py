@@ -24,7 +24,7 @@ from robot_retarget.casadi_jit import compile_graph, memoized_graph
 from robot_retarget.geometry import symbolic_quaternion as sq
 from robot_retarget.keypoints import camera_fit as cf
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, LIMB_BONES, NUM_KEYPOINTS, Coco
-from robot_retarget.keypoints.reprojection import ALONG_VIEW_SCALE, CHANGED, upper_body
+from robot_retarget.keypoints.reprojection import CHANGED, DEPTH_BONES, upper_body
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 
 Vec = sq.Vec
@@ -137,22 +137,46 @@ def _ray(xy: ca.SX, k: int | tuple[int, int], camera: tuple[ca.SX, ca.SX, ca.SX]
     return (x - cx, y - cy, focal)
 
 
-def _into_plane(d: Vec, ray_a: Vec, ray_b: Vec, seen: ca.SX, weighted: bool) -> Vec:
-    """reprojection._into_planes of one unit direction (camera frame); ``seen`` 0 → as it is."""
+def _into_plane(d: Vec, ray_a: Vec, ray_b: Vec, seen: ca.SX, along_view_scale: float | None) -> Vec:
+    """reprojection._into_planes of one unit direction (camera frame), weighted by
+    ``along_view_scale`` (None: not weighted); ``seen`` 0 → as it is."""
     normal = sq.cross(ray_a, ray_b)
     size = sq.norm(normal)
     ok = ca.logic_and(seen > 0.5, size > 1e-9)
     n = tuple(ca.if_else(ok, c / ca.fmax(size, 1e-9), 0.0) for c in normal)
     inside = sq.reject(d, n)
-    if weighted:
+    if along_view_scale is not None:
         m2 = d[0] * d[0] + d[1] * d[1]
-        share = m2 / (m2 + ALONG_VIEW_SCALE**2)
+        share = m2 / (m2 + along_view_scale**2)
         inside = tuple(a + share * (b - a) for a, b in zip(d, inside, strict=True))
     length = sq.norm(inside)
     ok = ca.logic_and(ok, length > 1e-9)
     return tuple(
         ca.if_else(ok, c / ca.fmax(length, 1e-9), a) for a, c in zip(d, inside, strict=True)
     )
+
+
+def _depth_from_length(
+    d: Vec, ray_a: Vec, ray_b: Vec, expected: ca.SX, seen: ca.SX, depth_scale: float
+) -> Vec:
+    """reprojection.depth_from_length of one unit direction (camera frame); ``seen`` 0 or
+    ``expected`` ≤ 0 → as it is."""
+    view = sq.add(ray_a, ray_b)
+    view = sq.scale(1.0 / ca.fmax(sq.norm(view), 1e-9), view)  # a missing point's rays are 0
+    image_len = ca.sqrt((ray_b[0] - ray_a[0]) ** 2 + (ray_b[1] - ray_a[1]) ** 2)
+    sin_m = ca.fmin(ca.fmax(sq.dot(d, view), -1.0), 1.0)
+    across = sq.sub(d, sq.scale(sin_m, view))
+    across_len = sq.norm(across)
+    ok = ca.logic_and(ca.logic_and(seen > 0.5, expected > 0.0), across_len > 1e-9)
+    across = sq.scale(1.0 / ca.fmax(across_len, 1e-9), across)
+    cos_i = ca.fmin(ca.fmax(image_len / ca.fmax(expected, 1e-12), 0.0), 1.0)
+    sin_i2 = 1.0 - cos_i * cos_i
+    share = sin_i2 / (sin_i2 + depth_scale**2)
+    phi_m = ca.asin(sin_m)
+    phi_i = ca.if_else(sin_m < 0.0, -1.0, 1.0) * ca.acos(cos_i)
+    phi = phi_m + share * (phi_i - phi_m)
+    moved = sq.add(sq.scale(ca.cos(phi), across), sq.scale(ca.sin(phi), view))
+    return tuple(ca.if_else(ok, m, a) for m, a in zip(moved, d, strict=True))
 
 
 def _turn(a: Vec, b: Vec) -> sq.Mat:
@@ -193,11 +217,18 @@ def _from_matrix(m: sq.Mat) -> sq.Quat:
 
 
 @memoized_graph
-def turn_function(parents: tuple[int, ...], offsets: FloatArray) -> ca.Function:
-    """``(local J·4, xy 17·2, seen 17, rotation 9, camera (cx, cy, focal), applied C·4, rate)
-    → (turned local J·4, applied C·4)``: the frame's bones turned toward the image's planes
-    (reprojection.plane_changes), the turns averaged into those applied so far, and applied
-    (reprojection.apply_changes); C = len(CHANGED)."""
+def turn_function(
+    parents: tuple[int, ...],
+    offsets: FloatArray,
+    distance: float,
+    along_view_scale: float,
+    depth_scale: float,
+) -> ca.Function:
+    """``(local J·4, xy 17·2, seen 17, rotation 9, camera (cx, cy, focal), applied C·4, rate,
+    image scale) → (turned local J·4, applied C·4)``: the frame's bones turned toward the
+    image's planes (reprojection.plane_changes with ``along_view_scale`` and, where the image
+    scale is positive, the depth cue), the turns averaged into those applied so far, and
+    applied (reprojection.apply_changes); C = len(CHANGED)."""
     local = ca.SX.sym("local", 4 * len(parents))
     xy = ca.SX.sym("xy", 2 * NUM_KEYPOINTS)
     seen = ca.SX.sym("seen", NUM_KEYPOINTS)
@@ -205,6 +236,7 @@ def turn_function(parents: tuple[int, ...], offsets: FloatArray) -> ca.Function:
     cam = ca.SX.sym("camera", 3)
     applied = ca.SX.sym("applied", 4 * len(CHANGED))
     rate = ca.SX.sym("rate")
+    image_scale = ca.SX.sym("image_scale")
     camera = (cam[0], cam[1], cam[2])
     r = tuple(rot[i] for i in range(9))
     rt = sq.transpose(r)
@@ -221,18 +253,24 @@ def turn_function(parents: tuple[int, ...], offsets: FloatArray) -> ca.Function:
     d, _ = sq.unit(sq.sub(sho3, hip3))
     before = sq.rotate(r, d)
     both = seen[lh] * seen[rh] * seen[ls] * seen[rs]
-    after = _into_plane(before, _ray(xy, (lh, rh), camera), _ray(xy, (ls, rs), camera), both, False)
+    after = _into_plane(before, _ray(xy, (lh, rh), camera), _ray(xy, (ls, rs), camera), both, None)
     torso = _turn(sq.rotate(rt, before), sq.rotate(rt, after))
     upper = set(upper_body(parents))
     glob = [sq.matmul(torso, g) if j in upper else g for j, g in enumerate(glob0)]
 
     # Each limb bone on its own (its child keeps its global rotation).
     turned = list(glob)
-    for joint, child, k0, k1 in LIMB_BONES:
+    for (joint, child, k0, k1), cued in zip(LIMB_BONES, DEPTH_BONES, strict=True):
         bone, _ = sq.unit(sq.rotate(glob[joint], _const(offsets[child])))
         before = sq.rotate(r, bone)
         ok = seen[k0] * seen[k1]
-        after = _into_plane(before, _ray(xy, int(k0), camera), _ray(xy, int(k1), camera), ok, True)
+        ray_a, ray_b = _ray(xy, int(k0), camera), _ray(xy, int(k1), camera)
+        after = _into_plane(before, ray_a, ray_b, ok, along_view_scale)
+        if cued:  # its full image length: the image scale × its length, at its midpoint's depth
+            depth_off = sq.rotate(r, sq.scale(ca.SX(0.5), sq.add(pos[joint], pos[child])))[2]
+            length = float(sum(c * c for c in offsets[child]) ** 0.5)
+            expected = image_scale * length / (1.0 + depth_off / distance)
+            after = _depth_from_length(after, ray_a, ray_b, expected, ok, depth_scale)
         turned[joint] = sq.matmul(_turn(sq.rotate(rt, before), sq.rotate(rt, after)), glob[joint])
 
     # The changed joints' local turns, averaged into those applied so far, then applied.
@@ -249,6 +287,6 @@ def turn_function(parents: tuple[int, ...], offsets: FloatArray) -> ca.Function:
         out[j] = sq.normalize(sq.qmul(mixed, out[j]))
     return compile_graph(
         "keypoint_planes_turn",
-        [local, xy, seen, rot, cam, applied, rate],
+        [local, xy, seen, rot, cam, applied, rate, image_scale],
         [ca.vertcat(*(c for q in out for c in q)), ca.vertcat(*(c for q in now for c in q))],
     )

@@ -50,6 +50,23 @@ share m² / (m² + ALONG_VIEW_SCALE²) of the way into its plane (chosen on subj
 _LIMB_JOINTS, _LIMB_CHILDREN, _LIMB_KEY_STARTS, _LIMB_KEY_ENDS = (
     np.array(c, dtype=np.int64) for c in zip(*LIMB_BONES, strict=True)
 )
+# The limb bones that take the depth cue (stream): upper arms, thighs and shins, not the
+# forearms (the wrists are the noisiest keypoints: with them the forearms' error rose 0.3° on
+# the tuning subjects while every other bone's fell).
+DEPTH_BONES = np.array(
+    [b[0] not in (Joint.LeftForeArm, Joint.RightForeArm) for b in LIMB_BONES], dtype=bool
+)
+
+
+@dataclass(frozen=True)
+class DepthCue:
+    """The frames' image scales (T,) (pixels per metre at the hips' depth; NaN or ≤ 0: no cue
+    that frame) and the share's scale of :func:`depth_from_length`."""
+
+    image_scale: FloatArray
+    depth_scale: float
+
+
 # The joints whose local rotation the turns change: the spine's first joint (the torso) and
 # the limb bones' (each turned, and the arms' parents turned with the torso). Hands, feet and
 # toes keep their local rotations: they move with the bone they hang from.
@@ -94,10 +111,15 @@ def smooth_rotations(rotations: FloatArray, fps: float, sigma_s: float) -> Float
 
 
 def _into_planes(
-    directions: FloatArray, ray_a: FloatArray, ray_b: FloatArray, weighted: bool = True
+    directions: FloatArray,
+    ray_a: FloatArray,
+    ray_b: FloatArray,
+    weighted: bool = True,
+    along_view_scale: float = ALONG_VIEW_SCALE,
 ) -> FloatArray:
     """Unit ``directions`` (T, 3, camera frame) turned toward the planes spanned by the rays
-    (T, 3) (weighted by how much each lies across the view); NaN rays leave them as they are."""
+    (T, 3) (weighted by how much each lies across the view, ``along_view_scale``); NaN rays
+    leave them as they are."""
     normal = quat.cross(ray_a, ray_b)
     size = np.linalg.norm(normal, axis=-1, keepdims=True)
     ok = np.isfinite(size[:, 0]) & (size[:, 0] > 1e-9)
@@ -105,11 +127,47 @@ def _into_planes(
     inside = directions - np.sum(directions * normal, axis=-1, keepdims=True) * normal
     if weighted:
         m2 = np.sum(directions[:, :2] ** 2, axis=-1, keepdims=True)
-        inside = directions + m2 / (m2 + ALONG_VIEW_SCALE**2) * (inside - directions)
+        inside = directions + m2 / (m2 + along_view_scale**2) * (inside - directions)
     length = np.linalg.norm(inside, axis=-1, keepdims=True)
     ok &= length[:, 0] > 1e-9
     out: FloatArray = np.where(ok[:, None], inside / np.where(ok[:, None], length, 1.0), directions)
     return out
+
+
+def depth_from_length(
+    directions: FloatArray,
+    ray_a: FloatArray,
+    ray_b: FloatArray,
+    expected_px: FloatArray,
+    depth_scale: float,
+) -> FloatArray:
+    """Unit bone ``directions`` (N, 3, camera frame) with their angle to the image plane moved
+    toward the one their image length gives (``stream``'s depth cue, see online_reprojection).
+
+    A bone of image length ℓ whose full length across the view would be ``expected_px`` (N,)
+    makes an angle φ = acos(ℓ / expected) with the plane across its viewing ray (the ray to
+    its midpoint); the sign, toward or away from the camera, is the model's. The model's angle
+    moves a share s² / (s² + ``depth_scale``²) of the way, s = sin φ: a length near the full
+    one says little about the angle (its slope is s), a foreshortened one says much. Where
+    an end point is missing or the expected length is not positive, the direction stays."""
+    view = ray_a + ray_b
+    view_len = np.linalg.norm(view, axis=-1, keepdims=True)
+    image_len = np.linalg.norm(ray_b[:, :2] - ray_a[:, :2], axis=-1)
+    ok = np.isfinite(view_len[:, 0]) & np.isfinite(image_len) & (expected_px > 0.0)
+    view = np.where(ok[:, None], view / np.where(ok[:, None], view_len, 1.0), 0.0)
+    sin_m = np.clip(np.sum(directions * view, axis=-1), -1.0, 1.0)
+    across = directions - sin_m[:, None] * view
+    across_len = np.linalg.norm(across, axis=-1, keepdims=True)
+    ok &= across_len[:, 0] > 1e-9
+    across = across / np.where(ok[:, None], across_len, 1.0)
+    cos_i = np.clip(np.where(ok, image_len, 0.0) / np.where(ok, expected_px, 1.0), 0.0, 1.0)
+    sin_i2 = 1.0 - cos_i**2
+    share = sin_i2 / (sin_i2 + depth_scale**2)
+    phi_m = np.arcsin(sin_m)
+    phi_i = np.copysign(np.arccos(cos_i), sin_m)
+    phi = phi_m + share * (phi_i - phi_m)
+    moved = np.cos(phi)[:, None] * across + np.sin(phi)[:, None] * view
+    return np.asarray(np.where(ok[:, None], moved, directions), dtype=np.float64)
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -196,11 +254,20 @@ def apply_changes(local: FloatArray, changes: FloatArray) -> FloatArray:
     return out
 
 
-def plane_changes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> FloatArray:
+def plane_changes(
+    pose: MatrixPose,
+    xy: FloatArray,
+    camera: CameraEstimate,
+    *,
+    along_view_scale: float = ALONG_VIEW_SCALE,
+    depth: DepthCue | None = None,
+) -> FloatArray:
     """How ``pose`` (heading frame) turns with the torso and then each limb bone turned toward
     the planes of the keypoints ``xy`` (T, 17, 2) seen by ``camera`` (module docstring): the
     changes (T, len(CHANGED), 4, w > 0) of the :data:`CHANGED` joints' local rotations, for
-    :func:`apply_changes` (the other joints' do not change)."""
+    :func:`apply_changes` (the other joints' do not change). ``depth``: the
+    :data:`DEPTH_BONES` also take their angle to the image plane from their image length
+    (:func:`depth_from_length`; ``stream``'s)."""
     rot = camera.rotation()
     glob = pose.global_m.copy()
     pos = pose.positions
@@ -222,7 +289,9 @@ def plane_changes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> F
     before = (_unit(bone) @ rot.T).reshape(t * n, 3)
     ray_a = camera.rays(xy[:, _LIMB_KEY_STARTS]).reshape(t * n, 3)
     ray_b = camera.rays(xy[:, _LIMB_KEY_ENDS]).reshape(t * n, 3)
-    after = _into_planes(before, ray_a, ray_b)
+    after = _into_planes(before, ray_a, ray_b, along_view_scale=along_view_scale)
+    if depth is not None:
+        after = _with_depth(after, ray_a, ray_b, pose, rot, camera.distance_m, depth)
     turn = _turns(before @ rot, after @ rot).reshape(t, n, 3, 3)
     glob[:, _LIMB_JOINTS] = turn @ glob[:, _LIMB_JOINTS]
 
@@ -249,6 +318,30 @@ def plane_changes(pose: MatrixPose, xy: FloatArray, camera: CameraEstimate) -> F
             axis=-1,
         )
     return np.asarray(q_change)
+
+
+def _with_depth(
+    after: FloatArray,
+    ray_a: FloatArray,
+    ray_b: FloatArray,
+    pose: MatrixPose,
+    rot: FloatArray,
+    distance: float,
+    depth: DepthCue,
+) -> FloatArray:
+    """The limb bones' turned directions (T·8, 3) with :func:`depth_from_length` on the
+    :data:`DEPTH_BONES`: each bone's full image length is the frame's image scale × its
+    length on the skeleton, at its midpoint's depth in the model's pose."""
+    t, n = pose.positions.shape[0], len(LIMB_BONES)
+    mid = 0.5 * (pose.positions[:, _LIMB_JOINTS] + pose.positions[:, _LIMB_CHILDREN])
+    depth_off = (mid @ rot.T)[..., 2]  # along the view, from the hips (T, 8)
+    lengths = np.linalg.norm(pose.skeleton.offsets[_LIMB_CHILDREN], axis=-1)
+    scale = np.asarray(depth.image_scale, dtype=np.float64).reshape(t, 1)
+    scale = np.where(np.isfinite(scale) & (scale > 0.0), scale, 0.0)
+    expected = (scale * lengths / (1.0 + depth_off / distance)).reshape(t * n)
+    moved = depth_from_length(after, ray_a, ray_b, expected, depth.depth_scale)
+    on = np.tile(DEPTH_BONES, t)
+    return np.asarray(np.where(on[:, None], moved, after), dtype=np.float64)
 
 
 def upper_body(parents: tuple[int, ...]) -> list[int]:
