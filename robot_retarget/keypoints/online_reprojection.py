@@ -8,6 +8,12 @@ the image scale is a running mean of its logarithm, the principal point a runnin
 hip centre. Until :data:`MIN_SECONDS` of frames have shown a body the pose passes through as
 the model gave it. The keypoints are used as they arrive (no smoothing: it would look ahead or lag).
 
+Two things differ from ``convert``'s turns, both for the causal model, which is further off
+than ``convert``'s centred ones: bones pointing partly along the view are turned a larger share
+into their planes (:data:`ALONG_VIEW_SCALE`), and the upper arms, thighs and shins also take
+their angle to the image plane from their image length (:data:`DEPTH_SCALE`,
+reprojection.depth_from_length).
+
 A frame runs as three compiled calls (robot_retarget.keypoints.planes_graph: about a tenth of
 the time of the numpy code, which stays as the reference, ``compiled=False``).
 """
