@@ -8,11 +8,8 @@ the image scale is a running mean of its logarithm, the principal point a runnin
 hip centre. Until :data:`MIN_SECONDS` of frames have shown a body the pose passes through as
 the model gave it. The keypoints are used as they arrive (no smoothing: it would look ahead or lag).
 
-Two things differ from ``convert``'s turns, both for the causal model, which is further off
-than ``convert``'s centred ones: bones pointing partly along the view are turned a larger share
-into their planes (:data:`ALONG_VIEW_SCALE`), and the upper arms, thighs and shins also take
-their angle to the image plane from their image length (:data:`DEPTH_SCALE`,
-reprojection.depth_from_length).
+As in ``convert``, the upper arms, thighs and shins also take their angle to the image plane
+from their image length (reprojection.depth_from_length), against this frame's image scale.
 
 A frame runs as three compiled calls (robot_retarget.keypoints.planes_graph: about a tenth of
 the time of the numpy code, which stays as the reference, ``compiled=False``).
@@ -38,6 +35,7 @@ from robot_retarget.keypoints.coco17 import Coco
 from robot_retarget.keypoints.planes_graph import fit_function, scale_function, turn_function
 from robot_retarget.keypoints.reprojection import (
     CHANGED,
+    DEPTH_SCALE,
     DepthCue,
     MatrixPose,
     apply_changes,
@@ -61,22 +59,6 @@ average: the keypoints' frame-to-frame noise is in the turns, the model's error 
 is not); at other frame rates the share with the same time constant (chosen on subjects 02
 and 13: 0.5 / 0.3 / 0.2 / 0.1 gave 6.61° / 6.62° / 6.72° / 6.94°)."""
 _RATE_FPS = 30.0
-ALONG_VIEW_SCALE = 0.25
-"""``convert``'s share (reprojection.ALONG_VIEW_SCALE, 0.4) with a smaller scale: a bone
-pointing partly along the view is turned further into its plane. The causal model is further
-off than ``convert``'s centred ones, so the plane is worth more against it (chosen with the
-depth cue below; see DEPTH_SCALE)."""
-DEPTH_SCALE = 1.0
-"""The depth cue's share scale (reprojection.depth_from_length): the upper arms, thighs and
-shins (reprojection.DEPTH_BONES) also take their angle to the image plane from their image
-length against the frame's image scale × their length on the reference skeleton (the
-performer's proportions are not estimated: a running estimate from the stream's longest
-images scored worse). Chosen with ALONG_VIEW_SCALE on subjects the lifting model never saw:
-two causal models of the shipped recipe trained without 13, 14 and without 02, 05 (and
-without the validation subjects), each scored on its held-out pair, and the shipped model on
-02, 05, 13 (the lifted performer, 12 views): 14.33° → 13.91°, 19.98° → 19.55°,
-9.14° → 8.97°; with the forearms too, or with 0.5 or 2, less in one of the three. Stream
-rows on the robots (the first fold): OP3 24.49° → 23.74°, Poppy 15.38° → 14.94°."""
 
 
 class OnlineReprojection:
@@ -130,13 +112,7 @@ class OnlineReprojection:
         if camera is None:
             return pose.local[0]
         frame_scale = np.array([float(scale[0]) if len(scale) else math.nan])
-        changes = plane_changes(
-            pose,
-            obs,
-            camera,
-            along_view_scale=ALONG_VIEW_SCALE,
-            depth=DepthCue(frame_scale, DEPTH_SCALE),
-        )[0]
+        changes = plane_changes(pose, obs, camera, depth=DepthCue(frame_scale, DEPTH_SCALE))[0]
         if self._changes is None:  # the turns fade in from none: no jolt when the camera is set
             self._changes = _NO_TURN.reshape(-1, 4)
         # Both have w > 0: a normalised lerp is a fine average.
@@ -203,7 +179,7 @@ class _PlanesCalls:
         self.rotation = self.scale.args[3]
         self.scale_out, self.enough = self.scale.res
         self.turn = CompiledFunction(
-            turn_function(parents, offsets, distance, ALONG_VIEW_SCALE, DEPTH_SCALE),
+            turn_function(parents, offsets, distance),
             args=[self.local, self.xy, self.seen, None, None, None, None, None],
         )
         self.turn_rotation, self.camera, self.applied, self.rate, self.image_scale = self.turn.args[

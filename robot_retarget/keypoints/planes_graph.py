@@ -24,7 +24,13 @@ from robot_retarget.casadi_jit import compile_graph, memoized_graph
 from robot_retarget.geometry import symbolic_quaternion as sq
 from robot_retarget.keypoints import camera_fit as cf
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, LIMB_BONES, NUM_KEYPOINTS, Coco
-from robot_retarget.keypoints.reprojection import CHANGED, DEPTH_BONES, upper_body
+from robot_retarget.keypoints.reprojection import (
+    ALONG_VIEW_SCALE,
+    CHANGED,
+    DEPTH_BONES,
+    DEPTH_SCALE,
+    upper_body,
+)
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 
 Vec = sq.Vec
@@ -217,17 +223,11 @@ def _from_matrix(m: sq.Mat) -> sq.Quat:
 
 
 @memoized_graph
-def turn_function(
-    parents: tuple[int, ...],
-    offsets: FloatArray,
-    distance: float,
-    along_view_scale: float,
-    depth_scale: float,
-) -> ca.Function:
+def turn_function(parents: tuple[int, ...], offsets: FloatArray, distance: float) -> ca.Function:
     """``(local J·4, xy 17·2, seen 17, rotation 9, camera (cx, cy, focal), applied C·4, rate,
     image scale) → (turned local J·4, applied C·4)``: the frame's bones turned toward the
-    image's planes (reprojection.plane_changes with ``along_view_scale`` and, where the image
-    scale is positive, the depth cue), the turns averaged into those applied so far, and
+    image's planes (reprojection.plane_changes, with the depth cue where the image scale is
+    positive), the turns averaged into those applied so far, and
     applied (reprojection.apply_changes); C = len(CHANGED)."""
     local = ca.SX.sym("local", 4 * len(parents))
     xy = ca.SX.sym("xy", 2 * NUM_KEYPOINTS)
@@ -265,12 +265,12 @@ def turn_function(
         before = sq.rotate(r, bone)
         ok = seen[k0] * seen[k1]
         ray_a, ray_b = _ray(xy, int(k0), camera), _ray(xy, int(k1), camera)
-        after = _into_plane(before, ray_a, ray_b, ok, along_view_scale)
+        after = _into_plane(before, ray_a, ray_b, ok, ALONG_VIEW_SCALE)
         if cued:  # its full image length: the image scale × its length, at its midpoint's depth
             depth_off = sq.rotate(r, sq.scale(ca.SX(0.5), sq.add(pos[joint], pos[child])))[2]
             length = float(sum(c * c for c in offsets[child]) ** 0.5)
             expected = image_scale * length / (1.0 + depth_off / distance)
-            after = _depth_from_length(after, ray_a, ray_b, expected, ok, depth_scale)
+            after = _depth_from_length(after, ray_a, ray_b, expected, ok, DEPTH_SCALE)
         turned[joint] = sq.matmul(_turn(sq.rotate(rt, before), sq.rotate(rt, after)), glob[joint])
 
     # The changed joints' local turns, averaged into those applied so far, then applied.

@@ -13,7 +13,10 @@ two end points. This module
    toward its plane (:func:`plane_changes`): fully where the bone lies across the view, less
    where it points along the camera's axis, whose plane the keypoints' noise decides (the torso
    hardly ever does; weighting it too cost 0.3–0.6° on it on subjects 02 and 13). Hands, feet
-   and toes follow their bones; the head and arms follow the torso.
+   and toes follow their bones; the head and arms follow the torso;
+3. moves the upper arms', thighs' and shins' angle to the image plane toward the one their
+   image length gives (:func:`depth_from_length`: the planes fix a bone's direction across the
+   image, not how far it points toward or away from the camera).
 
 The keypoints are smoothed over time first (Gaussian, σ = one 30 fps frame; a missing point
 stays missing), a bone with an end point missing keeps the model's direction, and the turns
@@ -30,8 +33,8 @@ import numpy as np
 
 from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.keypoints.camera_fit import CameraEstimate, fit_camera
-from robot_retarget.keypoints.coco17 import LIMB_BONES, Coco
+from robot_retarget.keypoints.camera_fit import CameraEstimate, fit_camera, image_scales
+from robot_retarget.keypoints.coco17 import BODY_JOINTS, LIMB_BONES, Coco
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.runtime.frame import TreeKinematics, matrices, qmul
@@ -43,19 +46,44 @@ CHANGE_SMOOTH_S = 2.0 / 30.0
 """The turns are smoothed over time with this σ (on subjects 02, 05 and 13: the lifted
 performer 6.05° with the turned pose smoothed as the keypoints are, 5.94° with the turns
 smoothed at σ = 2 frames instead, 5.99° at 1, 5.96° at 3, 6.07° at 5)."""
-ALONG_VIEW_SCALE = 0.4
+ALONG_VIEW_SCALE = 0.25
 """A bone whose direction has image-plane length m (unit vector, camera frame) is turned a
-share m² / (m² + ALONG_VIEW_SCALE²) of the way into its plane (chosen on subjects 02, 05, 13)."""
+share m² / (m² + ALONG_VIEW_SCALE²) of the way into its plane (0.4 until 2026-11-27, chosen on
+subjects 02, 05, 13, which the keypoint models train on; 0.25 chosen with DEPTH_SCALE)."""
+DEPTH_SCALE = 1.0
+"""The depth cue's share scale (:func:`depth_from_length`): the upper arms, thighs and shins
+(:data:`DEPTH_BONES`) also take their angle to the image plane from their image length against
+the frame's image scale × their length on the reference skeleton (the performer's proportions
+are not estimated: in ``stream`` a running estimate from the longest images scored worse).
+Chosen with ALONG_VIEW_SCALE on subjects the lifting model never saw: two causal models of the
+shipped recipe trained without 13, 14 and without 02, 05 (and without the validation
+subjects), each scored on its held-out pair, and the shipped models on 02, 05, 13 (the lifted
+performer through 12 views; ``stream``: 14.33° → 13.90°, 19.98° → 19.57°, 9.14° → 8.97°;
+``convert``'s planes on the fold models' whole-clip answers and on the shipped ensemble:
+13.96° → 13.46°, 19.52° → 19.03°, 8.03° → 7.89°). A share scale of 0.5 or 2, or the cue on the
+forearms too, did worse on one of the three."""
 
 _LIMB_JOINTS, _LIMB_CHILDREN, _LIMB_KEY_STARTS, _LIMB_KEY_ENDS = (
     np.array(c, dtype=np.int64) for c in zip(*LIMB_BONES, strict=True)
 )
+_BODY_KEYPOINTS = np.array(list(BODY_JOINTS), dtype=np.int64)
+
 # The limb bones that take the depth cue (stream): upper arms, thighs and shins, not the
 # forearms (the wrists are the noisiest keypoints: with them the forearms' error rose 0.3° on
 # the tuning subjects while every other bone's fell).
 DEPTH_BONES = np.array(
     [b[0] not in (Joint.LeftForeArm, Joint.RightForeArm) for b in LIMB_BONES], dtype=bool
 )
+
+
+def frame_scales(rel: FloatArray, xy: FloatArray, camera: CameraEstimate) -> FloatArray:
+    """(T,) each frame's image scale under ``camera`` (camera_fit.image_scales; NaN where
+    fewer than three body points are seen) of joint positions ``rel`` (T, 22, 3, hips at the
+    origin)."""
+    frames = np.isfinite(xy[:, _BODY_KEYPOINTS]).all(axis=-1).sum(axis=1) >= 3
+    out = np.full(len(rel), np.nan)
+    out[frames] = image_scales(rel, xy, camera.rotation(), camera.distance_m)
+    return out
 
 
 @dataclass(frozen=True)
@@ -111,15 +139,10 @@ def smooth_rotations(rotations: FloatArray, fps: float, sigma_s: float) -> Float
 
 
 def _into_planes(
-    directions: FloatArray,
-    ray_a: FloatArray,
-    ray_b: FloatArray,
-    weighted: bool = True,
-    along_view_scale: float = ALONG_VIEW_SCALE,
+    directions: FloatArray, ray_a: FloatArray, ray_b: FloatArray, weighted: bool = True
 ) -> FloatArray:
     """Unit ``directions`` (T, 3, camera frame) turned toward the planes spanned by the rays
-    (T, 3) (weighted by how much each lies across the view, ``along_view_scale``); NaN rays
-    leave them as they are."""
+    (T, 3) (weighted by how much each lies across the view); NaN rays leave them as they are."""
     normal = quat.cross(ray_a, ray_b)
     size = np.linalg.norm(normal, axis=-1, keepdims=True)
     ok = np.isfinite(size[:, 0]) & (size[:, 0] > 1e-9)
@@ -127,7 +150,7 @@ def _into_planes(
     inside = directions - np.sum(directions * normal, axis=-1, keepdims=True) * normal
     if weighted:
         m2 = np.sum(directions[:, :2] ** 2, axis=-1, keepdims=True)
-        inside = directions + m2 / (m2 + along_view_scale**2) * (inside - directions)
+        inside = directions + m2 / (m2 + ALONG_VIEW_SCALE**2) * (inside - directions)
     length = np.linalg.norm(inside, axis=-1, keepdims=True)
     ok &= length[:, 0] > 1e-9
     out: FloatArray = np.where(ok[:, None], inside / np.where(ok[:, None], length, 1.0), directions)
@@ -193,9 +216,11 @@ def reproject_with_camera(
     camera = fit_camera(pose.positions, motion.skeleton, xy)  # root at the origin
     if camera is None:
         return motion, None
+    depth = DepthCue(frame_scales(pose.positions, xy, camera), DEPTH_SCALE)
+    changes = plane_changes(pose, xy, camera, depth=depth)
     # The turns carry what noise the smoothed keypoints still have; the model's error they
     # correct changes more slowly: they are smoothed again, over a longer time.
-    changes = smooth_rotations(plane_changes(pose, xy, camera), motion.fps, CHANGE_SMOOTH_S)
+    changes = smooth_rotations(changes, motion.fps, CHANGE_SMOOTH_S)
     local = apply_changes(pose.local, changes)
     turned = HumanMotion(
         motion.skeleton, local, motion.root_pos, motion.fps, source_path=motion.source_path
@@ -259,7 +284,6 @@ def plane_changes(
     xy: FloatArray,
     camera: CameraEstimate,
     *,
-    along_view_scale: float = ALONG_VIEW_SCALE,
     depth: DepthCue | None = None,
 ) -> FloatArray:
     """How ``pose`` (heading frame) turns with the torso and then each limb bone turned toward
@@ -267,7 +291,7 @@ def plane_changes(
     changes (T, len(CHANGED), 4, w > 0) of the :data:`CHANGED` joints' local rotations, for
     :func:`apply_changes` (the other joints' do not change). ``depth``: the
     :data:`DEPTH_BONES` also take their angle to the image plane from their image length
-    (:func:`depth_from_length`; ``stream``'s)."""
+    (:func:`depth_from_length`)."""
     rot = camera.rotation()
     glob = pose.global_m.copy()
     pos = pose.positions
@@ -289,7 +313,7 @@ def plane_changes(
     before = (_unit(bone) @ rot.T).reshape(t * n, 3)
     ray_a = camera.rays(xy[:, _LIMB_KEY_STARTS]).reshape(t * n, 3)
     ray_b = camera.rays(xy[:, _LIMB_KEY_ENDS]).reshape(t * n, 3)
-    after = _into_planes(before, ray_a, ray_b, along_view_scale=along_view_scale)
+    after = _into_planes(before, ray_a, ray_b)
     if depth is not None:
         after = _with_depth(after, ray_a, ray_b, pose, rot, camera.distance_m, depth)
     turn = _turns(before @ rot, after @ rot).reshape(t, n, 3, 3)

@@ -1,5 +1,6 @@
-"""The stream's depth cue: a limb bone's image length tells its angle to the image plane
-(robot_retarget.keypoints.reprojection.depth_from_length, online_reprojection.DEPTH_SCALE)."""
+"""The depth cue: a limb bone's image length tells its angle to the image plane
+(robot_retarget.keypoints.reprojection.depth_from_length, DEPTH_SCALE), in ``convert``'s
+planes and the stream's."""
 
 from __future__ import annotations
 
@@ -11,12 +12,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import robot_retarget.keypoints.online_reprojection as online_module
+import robot_retarget.keypoints.reprojection as reprojection_module
 from robot_retarget.evaluation.robot.metrics import segment_angles
 from robot_retarget.evaluation.robot.segments import human_body_points
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.camera_fit import ASSUMED_DISTANCE_HEIGHTS
 from robot_retarget.keypoints.online_reprojection import OnlineReprojection
-from robot_retarget.keypoints.reprojection import DEPTH_BONES, depth_from_length
+from robot_retarget.keypoints.reprojection import DEPTH_BONES, depth_from_length, reproject
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.keypoints.synthetic import CLEAN, render_keypoints
 from robot_retarget.keypoints.virtual_camera import VirtualCamera
@@ -125,15 +127,19 @@ def test_only_the_upper_arms_thighs_and_shins_take_the_cue() -> None:
     assert cued == {"LeftArm", "RightArm", "LeftUpLeg", "RightUpLeg", "LeftLeg", "RightLeg"}
 
 
-def _left_upper_arm_error(truth: HumanMotion, moved: HumanMotion, seen: KeypointSequence) -> float:
-    """Mean angle (°) of the left upper arm after the stream's planes, against the truth."""
-    online = OnlineReprojection(truth.skeleton, fps=truth.fps, compiled=False)
-    out = np.stack([online.step(q, xy) for q, xy in zip(moved.local_quats, seen.xy, strict=True)])
-    turned = HumanMotion(truth.skeleton, out, truth.root_pos, truth.fps)
+def _left_upper_arm_error(truth: HumanMotion, turned: HumanMotion, first: int = 0) -> float:
+    """Mean angle (°) of the left upper arm of ``turned`` against the truth, from ``first``."""
     angles = segment_angles(
         human_body_points(truth.positions()), human_body_points(turned.positions())
     )
-    return float(np.degrees(angles[online.min_frames :, 0]).mean())
+    return float(np.degrees(angles[first:, 0]).mean())
+
+
+def _streamed(moved: HumanMotion, seen: KeypointSequence) -> tuple[HumanMotion, int]:
+    """``moved`` through the stream's planes, and the first frame they turn."""
+    online = OnlineReprojection(moved.skeleton, fps=moved.fps, compiled=False)
+    out = np.stack([online.step(q, xy) for q, xy in zip(moved.local_quats, seen.xy, strict=True)])
+    return HumanMotion(moved.skeleton, out, moved.root_pos, moved.fps), online.min_frames
 
 
 def _arm_turned_along_the_view(motion: HumanMotion, degrees: float) -> HumanMotion:
@@ -152,9 +158,8 @@ def _arm_turned_along_the_view(motion: HumanMotion, degrees: float) -> HumanMoti
     return HumanMotion(motion.skeleton, local, motion.root_pos, motion.fps)
 
 
-def test_a_foreshortened_upper_arm_the_model_put_across_the_view_is_turned_back(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
+@pytest.fixture(scope="module")
+def foreshortened() -> tuple[HumanMotion, HumanMotion, KeypointSequence]:
     """The performer's left upper arm points 50° toward the camera; the model's only 25°.
     The image planes cannot see that error (the image direction is the same); the arm's
     image length can. (The other way round, a bone across the view that the model turned
@@ -165,10 +170,28 @@ def test_a_foreshortened_upper_arm_the_model_put_across_the_view_is_turned_back(
         truth.positions(), truth.global_quats(), truth.height_m, cam,
         np.random.default_rng(0), CLEAN,
     )  # fmt: skip
-    seen = KeypointSequence(px, conf, valid, truth.fps)
-    model = _arm_turned_along_the_view(truth, -25.0)
-    with_cue = _left_upper_arm_error(truth, model, seen)
+    return truth, _arm_turned_along_the_view(truth, -25.0), KeypointSequence(px, conf, valid, 30.0)
+
+
+def test_the_stream_turns_a_foreshortened_upper_arm_back(
+    foreshortened: tuple[HumanMotion, HumanMotion, KeypointSequence],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    truth, model, seen = foreshortened
+    with_cue = _left_upper_arm_error(truth, *_streamed(model, seen))
     monkeypatch.setattr(online_module, "DEPTH_SCALE", 1e6)  # the cue's share all but 0
-    without = _left_upper_arm_error(truth, model, seen)
+    without = _left_upper_arm_error(truth, *_streamed(model, seen))
     assert without > 20.0
     assert with_cue < 0.8 * without  # 19.0° against 24.7°
+
+
+def test_convert_turns_a_foreshortened_upper_arm_back(
+    foreshortened: tuple[HumanMotion, HumanMotion, KeypointSequence],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    truth, model, seen = foreshortened
+    with_cue = _left_upper_arm_error(truth, reproject(model, seen))
+    monkeypatch.setattr(reprojection_module, "DEPTH_SCALE", 1e6)
+    without = _left_upper_arm_error(truth, reproject(model, seen))
+    assert without > 20.0
+    assert with_cue < 0.75 * without  # 16.2° against 24.7°
