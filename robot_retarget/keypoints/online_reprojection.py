@@ -182,7 +182,6 @@ class _PlanesCalls:
             turn_function(parents, offsets, distance),
             args=[self.local, self.xy, self.seen, None, None, None, None, None],
         )
-        self.turn_rotation, self.camera, self.applied, self.rate, self.image_scale = self.turn.args[
-            3:
-        ]
+        args = self.turn.args
+        self.turn_rotation, self.camera, self.applied, self.rate, self.image_scale = args[3:]
         self.turned, self.applied_next = self.turn.res

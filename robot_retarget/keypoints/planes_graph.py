@@ -143,17 +143,16 @@ def _ray(xy: ca.SX, k: int | tuple[int, int], camera: tuple[ca.SX, ca.SX, ca.SX]
     return (x - cx, y - cy, focal)
 
 
-def _into_plane(d: Vec, ray_a: Vec, ray_b: Vec, seen: ca.SX, along_view_scale: float | None) -> Vec:
-    """reprojection._into_planes of one unit direction (camera frame), weighted by
-    ``along_view_scale`` (None: not weighted); ``seen`` 0 → as it is."""
+def _into_plane(d: Vec, ray_a: Vec, ray_b: Vec, seen: ca.SX, weighted: bool) -> Vec:
+    """reprojection._into_planes of one unit direction (camera frame); ``seen`` 0 → as it is."""
     normal = sq.cross(ray_a, ray_b)
     size = sq.norm(normal)
     ok = ca.logic_and(seen > 0.5, size > 1e-9)
     n = tuple(ca.if_else(ok, c / ca.fmax(size, 1e-9), 0.0) for c in normal)
     inside = sq.reject(d, n)
-    if along_view_scale is not None:
+    if weighted:
         m2 = d[0] * d[0] + d[1] * d[1]
-        share = m2 / (m2 + along_view_scale**2)
+        share = m2 / (m2 + ALONG_VIEW_SCALE**2)
         inside = tuple(a + share * (b - a) for a, b in zip(d, inside, strict=True))
     length = sq.norm(inside)
     ok = ca.logic_and(ok, length > 1e-9)
@@ -162,9 +161,7 @@ def _into_plane(d: Vec, ray_a: Vec, ray_b: Vec, seen: ca.SX, along_view_scale: f
     )
 
 
-def _depth_from_length(
-    d: Vec, ray_a: Vec, ray_b: Vec, expected: ca.SX, seen: ca.SX, depth_scale: float
-) -> Vec:
+def _depth_from_length(d: Vec, ray_a: Vec, ray_b: Vec, expected: ca.SX, seen: ca.SX) -> Vec:
     """reprojection.depth_from_length of one unit direction (camera frame); ``seen`` 0 or
     ``expected`` ≤ 0 → as it is."""
     view = sq.add(ray_a, ray_b)
@@ -177,7 +174,7 @@ def _depth_from_length(
     across = sq.scale(1.0 / ca.fmax(across_len, 1e-9), across)
     cos_i = ca.fmin(ca.fmax(image_len / ca.fmax(expected, 1e-12), 0.0), 1.0)
     sin_i2 = 1.0 - cos_i * cos_i
-    share = sin_i2 / (sin_i2 + depth_scale**2)
+    share = sin_i2 / (sin_i2 + DEPTH_SCALE**2)
     phi_m = ca.asin(sin_m)
     phi_i = ca.if_else(sin_m < 0.0, -1.0, 1.0) * ca.acos(cos_i)
     phi = phi_m + share * (phi_i - phi_m)
@@ -227,8 +224,8 @@ def turn_function(parents: tuple[int, ...], offsets: FloatArray, distance: float
     """``(local J·4, xy 17·2, seen 17, rotation 9, camera (cx, cy, focal), applied C·4, rate,
     image scale) → (turned local J·4, applied C·4)``: the frame's bones turned toward the
     image's planes (reprojection.plane_changes, with the depth cue where the image scale is
-    positive), the turns averaged into those applied so far, and
-    applied (reprojection.apply_changes); C = len(CHANGED)."""
+    positive), the turns averaged into those applied so far, and applied
+    (reprojection.apply_changes); C = len(CHANGED)."""
     local = ca.SX.sym("local", 4 * len(parents))
     xy = ca.SX.sym("xy", 2 * NUM_KEYPOINTS)
     seen = ca.SX.sym("seen", NUM_KEYPOINTS)
@@ -253,7 +250,7 @@ def turn_function(parents: tuple[int, ...], offsets: FloatArray, distance: float
     d, _ = sq.unit(sq.sub(sho3, hip3))
     before = sq.rotate(r, d)
     both = seen[lh] * seen[rh] * seen[ls] * seen[rs]
-    after = _into_plane(before, _ray(xy, (lh, rh), camera), _ray(xy, (ls, rs), camera), both, None)
+    after = _into_plane(before, _ray(xy, (lh, rh), camera), _ray(xy, (ls, rs), camera), both, False)
     torso = _turn(sq.rotate(rt, before), sq.rotate(rt, after))
     upper = set(upper_body(parents))
     glob = [sq.matmul(torso, g) if j in upper else g for j, g in enumerate(glob0)]
@@ -265,12 +262,12 @@ def turn_function(parents: tuple[int, ...], offsets: FloatArray, distance: float
         before = sq.rotate(r, bone)
         ok = seen[k0] * seen[k1]
         ray_a, ray_b = _ray(xy, int(k0), camera), _ray(xy, int(k1), camera)
-        after = _into_plane(before, ray_a, ray_b, ok, ALONG_VIEW_SCALE)
+        after = _into_plane(before, ray_a, ray_b, ok, True)
         if cued:  # its full image length: the image scale × its length, at its midpoint's depth
             depth_off = sq.rotate(r, sq.scale(ca.SX(0.5), sq.add(pos[joint], pos[child])))[2]
             length = float(sum(c * c for c in offsets[child]) ** 0.5)
             expected = image_scale * length / (1.0 + depth_off / distance)
-            after = _depth_from_length(after, ray_a, ray_b, expected, ok, DEPTH_SCALE)
+            after = _depth_from_length(after, ray_a, ray_b, expected, ok)
         turned[joint] = sq.matmul(_turn(sq.rotate(rt, before), sq.rotate(rt, after)), glob[joint])
 
     # The changed joints' local turns, averaged into those applied so far, then applied.
