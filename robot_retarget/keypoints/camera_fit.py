@@ -112,10 +112,11 @@ def direction_costs(
 
 def image_scales(rel: FloatArray, xy: FloatArray, rot: FloatArray, distance: float) -> FloatArray:
     """Per-frame image scale (pixels per metre at the hips' depth; least squares over the body
-    points, offsets free) of the frames with three or more body points seen."""
+    points, offsets free) of the frames with three or more body points seen
+    (:func:`scaled_frames`)."""
     obs = xy[:, _BODY_K]
     w = np.asarray(np.isfinite(obs).all(axis=-1), dtype=np.float64)
-    frames = w.sum(axis=1) >= 3.0  # a scale and an offset need a few points
+    frames = scaled_frames(xy)
     proj = _project(rel[frames][:, _BODY_J], rot[None], distance)[0]
     obs, w = np.nan_to_num(obs[frames]), w[frames]
     n = np.maximum(w.sum(axis=1), 1.0)[:, None, None]
@@ -123,6 +124,20 @@ def image_scales(rel: FloatArray, xy: FloatArray, rot: FloatArray, distance: flo
     proj_c = proj - (proj * w[..., None]).sum(axis=1, keepdims=True) / n
     num = ((proj_c * obs_c).sum(-1) * w).sum(1)
     return np.asarray(num / np.maximum(((proj_c * proj_c).sum(-1) * w).sum(1), 1e-12))
+
+
+def scaled_frames(xy: FloatArray) -> BoolArray:
+    """(T,) the frames of keypoints ``xy`` (T, 17, 2) with an image scale: three or more body
+    points seen (a scale and an offset need a few points)."""
+    enough: BoolArray = np.isfinite(xy[:, _BODY_K]).all(axis=-1).sum(axis=1) >= 3
+    return enough
+
+
+def frame_scales(rel: FloatArray, xy: FloatArray, camera: CameraEstimate) -> FloatArray:
+    """(T,) :func:`image_scales` under ``camera`` of every frame, NaN where there is none."""
+    out = np.full(len(rel), np.nan)
+    out[scaled_frames(xy)] = image_scales(rel, xy, camera.rotation(), camera.distance_m)
+    return out
 
 
 def camera_distance(skeleton: Skeleton) -> float:

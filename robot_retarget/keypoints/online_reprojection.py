@@ -35,8 +35,6 @@ from robot_retarget.keypoints.coco17 import Coco
 from robot_retarget.keypoints.planes_graph import fit_function, scale_function, turn_function
 from robot_retarget.keypoints.reprojection import (
     CHANGED,
-    DEPTH_SCALE,
-    DepthCue,
     MatrixPose,
     apply_changes,
     plane_changes,
@@ -106,13 +104,13 @@ class OnlineReprojection:
         rel = pose.positions  # the root is at the origin
         self._costs += direction_costs(rel, obs, self._rots, self._distance)
         scale = image_scales(rel, obs, self._rots[int(np.argmin(self._costs))], self._distance)
+        frame_scale = float(scale[0]) if len(scale) else math.nan
         hips = 0.5 * (obs[0, Coco.left_hip] + obs[0, Coco.right_hip])
-        self._count_frame(float(scale[0]) if len(scale) else math.nan, len(scale) > 0, hips)
+        self._count_frame(frame_scale, len(scale) > 0, hips)
         camera = self.camera
         if camera is None:
             return pose.local[0]
-        frame_scale = np.array([float(scale[0]) if len(scale) else math.nan])
-        changes = plane_changes(pose, obs, camera, depth=DepthCue(frame_scale, DEPTH_SCALE))[0]
+        changes = plane_changes(pose, obs, camera, image_scale=np.array([frame_scale]))[0]
         if self._changes is None:  # the turns fade in from none: no jolt when the camera is set
             self._changes = _NO_TURN.reshape(-1, 4)
         # Both have w > 0: a normalised lerp is a fine average.
@@ -142,14 +140,14 @@ class OnlineReprojection:
         self._costs += g.costs
         g.rotation[:] = self._rots[int(np.argmin(self._costs))].reshape(-1)
         g.scale()
+        scale, enough = float(g.scale_out[0]), bool(g.enough[0] > 0.5)
         hips = 0.5 * (obs[Coco.left_hip] + obs[Coco.right_hip])
-        self._count_frame(float(g.scale_out[0]), bool(g.enough[0] > 0.5), hips)
+        self._count_frame(scale, enough, hips)
         camera = self.camera
         if camera is None:
             return g.local.reshape(-1, 4).copy()
         g.turn_rotation[:] = camera.rotation().reshape(-1)
-        scale = float(g.scale_out[0])
-        g.image_scale[0] = scale if g.enough[0] > 0.5 and math.isfinite(scale) else 0.0
+        g.image_scale[0] = scale if enough and math.isfinite(scale) else 0.0
         g.camera[:2] = camera.principal_px
         g.camera[2] = camera.focal_px
         g.applied[:] = _NO_TURN if self._changes is None else self._changes.reshape(-1)

@@ -33,8 +33,8 @@ import numpy as np
 
 from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.keypoints.camera_fit import CameraEstimate, fit_camera, image_scales
-from robot_retarget.keypoints.coco17 import BODY_JOINTS, LIMB_BONES, Coco
+from robot_retarget.keypoints.camera_fit import CameraEstimate, fit_camera, frame_scales
+from robot_retarget.keypoints.coco17 import LIMB_BONES, Coco
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.runtime.frame import TreeKinematics, matrices, qmul
@@ -66,33 +66,12 @@ forearms too, did worse on one of the three."""
 _LIMB_JOINTS, _LIMB_CHILDREN, _LIMB_KEY_STARTS, _LIMB_KEY_ENDS = (
     np.array(c, dtype=np.int64) for c in zip(*LIMB_BONES, strict=True)
 )
-_BODY_KEYPOINTS = np.array(list(BODY_JOINTS), dtype=np.int64)
-
-# The limb bones that take the depth cue (stream): upper arms, thighs and shins, not the
-# forearms (the wrists are the noisiest keypoints: with them the forearms' error rose 0.3° on
-# the tuning subjects while every other bone's fell).
+# The limb bones that take the depth cue: upper arms, thighs and shins, not the forearms (the
+# wrists are the noisiest keypoints: with them the forearms' error rose while every other
+# bone's fell).
 DEPTH_BONES = np.array(
     [b[0] not in (Joint.LeftForeArm, Joint.RightForeArm) for b in LIMB_BONES], dtype=bool
 )
-
-
-def frame_scales(rel: FloatArray, xy: FloatArray, camera: CameraEstimate) -> FloatArray:
-    """(T,) each frame's image scale under ``camera`` (camera_fit.image_scales; NaN where
-    fewer than three body points are seen) of joint positions ``rel`` (T, 22, 3, hips at the
-    origin)."""
-    frames = np.isfinite(xy[:, _BODY_KEYPOINTS]).all(axis=-1).sum(axis=1) >= 3
-    out = np.full(len(rel), np.nan)
-    out[frames] = image_scales(rel, xy, camera.rotation(), camera.distance_m)
-    return out
-
-
-@dataclass(frozen=True)
-class DepthCue:
-    """The frames' image scales (T,) (pixels per metre at the hips' depth; NaN or ≤ 0: no cue
-    that frame) and the share's scale of :func:`depth_from_length`."""
-
-    image_scale: FloatArray
-    depth_scale: float
 
 
 # The joints whose local rotation the turns change: the spine's first joint (the torso) and
@@ -165,7 +144,7 @@ def depth_from_length(
     depth_scale: float,
 ) -> FloatArray:
     """Unit bone ``directions`` (N, 3, camera frame) with their angle to the image plane moved
-    toward the one their image length gives (``stream``'s depth cue, see online_reprojection).
+    toward the one their image length gives (the depth cue; :data:`DEPTH_SCALE`).
 
     A bone of image length ℓ whose full length across the view would be ``expected_px`` (N,)
     makes an angle φ = acos(ℓ / expected) with the plane across its viewing ray (the ray to
@@ -216,8 +195,7 @@ def reproject_with_camera(
     camera = fit_camera(pose.positions, motion.skeleton, xy)  # root at the origin
     if camera is None:
         return motion, None
-    depth = DepthCue(frame_scales(pose.positions, xy, camera), DEPTH_SCALE)
-    changes = plane_changes(pose, xy, camera, depth=depth)
+    changes = plane_changes(pose, xy, camera, image_scale=frame_scales(pose.positions, xy, camera))
     # The turns carry what noise the smoothed keypoints still have; the model's error they
     # correct changes more slowly: they are smoothed again, over a longer time.
     changes = smooth_rotations(changes, motion.fps, CHANGE_SMOOTH_S)
@@ -284,12 +262,13 @@ def plane_changes(
     xy: FloatArray,
     camera: CameraEstimate,
     *,
-    depth: DepthCue | None = None,
+    image_scale: FloatArray | None = None,
 ) -> FloatArray:
     """How ``pose`` (heading frame) turns with the torso and then each limb bone turned toward
     the planes of the keypoints ``xy`` (T, 17, 2) seen by ``camera`` (module docstring): the
     changes (T, len(CHANGED), 4, w > 0) of the :data:`CHANGED` joints' local rotations, for
-    :func:`apply_changes` (the other joints' do not change). ``depth``: the
+    :func:`apply_changes` (the other joints' do not change). With the frames' ``image_scale``
+    (T,) (pixels per metre at the hips' depth; NaN or ≤ 0: none that frame) the
     :data:`DEPTH_BONES` also take their angle to the image plane from their image length
     (:func:`depth_from_length`)."""
     rot = camera.rotation()
@@ -314,8 +293,8 @@ def plane_changes(
     ray_a = camera.rays(xy[:, _LIMB_KEY_STARTS]).reshape(t * n, 3)
     ray_b = camera.rays(xy[:, _LIMB_KEY_ENDS]).reshape(t * n, 3)
     after = _into_planes(before, ray_a, ray_b)
-    if depth is not None:
-        after = _with_depth(after, ray_a, ray_b, pose, rot, camera.distance_m, depth)
+    if image_scale is not None:
+        after = _with_depth(after, ray_a, ray_b, pose, rot, camera.distance_m, image_scale)
     turn = _turns(before @ rot, after @ rot).reshape(t, n, 3, 3)
     glob[:, _LIMB_JOINTS] = turn @ glob[:, _LIMB_JOINTS]
 
@@ -351,7 +330,7 @@ def _with_depth(
     pose: MatrixPose,
     rot: FloatArray,
     distance: float,
-    depth: DepthCue,
+    image_scale: FloatArray,
 ) -> FloatArray:
     """The limb bones' turned directions (T·8, 3) with :func:`depth_from_length` on the
     :data:`DEPTH_BONES`: each bone's full image length is the frame's image scale × its
@@ -360,10 +339,10 @@ def _with_depth(
     mid = 0.5 * (pose.positions[:, _LIMB_JOINTS] + pose.positions[:, _LIMB_CHILDREN])
     depth_off = (mid @ rot.T)[..., 2]  # along the view, from the hips (T, 8)
     lengths = np.linalg.norm(pose.skeleton.offsets[_LIMB_CHILDREN], axis=-1)
-    scale = np.asarray(depth.image_scale, dtype=np.float64).reshape(t, 1)
+    scale = np.asarray(image_scale, dtype=np.float64).reshape(t, 1)
     scale = np.where(np.isfinite(scale) & (scale > 0.0), scale, 0.0)
     expected = (scale * lengths / (1.0 + depth_off / distance)).reshape(t * n)
-    moved = depth_from_length(after, ray_a, ray_b, expected, depth.depth_scale)
+    moved = depth_from_length(after, ray_a, ray_b, expected, DEPTH_SCALE)
     on = np.tile(DEPTH_BONES, t)
     return np.asarray(np.where(on[:, None], moved, after), dtype=np.float64)
 

@@ -11,7 +11,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import robot_retarget.keypoints.online_reprojection as online_module
 import robot_retarget.keypoints.reprojection as reprojection_module
 from robot_retarget.evaluation.robot.metrics import segment_angles
 from robot_retarget.evaluation.robot.segments import human_body_points
@@ -179,7 +178,7 @@ def test_the_stream_turns_a_foreshortened_upper_arm_back(
 ) -> None:
     truth, model, seen = foreshortened
     with_cue = _left_upper_arm_error(truth, *_streamed(model, seen))
-    monkeypatch.setattr(online_module, "DEPTH_SCALE", 1e6)  # the cue's share all but 0
+    monkeypatch.setattr(reprojection_module, "DEPTH_SCALE", 1e6)  # the cue's share all but 0
     without = _left_upper_arm_error(truth, *_streamed(model, seen))
     assert without > 20.0
     assert with_cue < 0.8 * without  # 19.0° against 24.7°
