@@ -301,6 +301,29 @@ def _motion_augmentation(
         ) from exc
 
 
+# Options only the other models' loop reads (agnostic2d validates every --val-every steps,
+# renders its own camera views and has no discriminator, robot targets or live-noise samples).
+_NOT_AGNOSTIC2D = (
+    "robots",
+    "checkpoint_every",
+    "log_every",
+    "live_noise",
+    "disc_config",
+    "same_skeleton_recon",
+)
+
+
+def _options_agnostic2d_ignores(args: argparse.Namespace) -> list[str]:
+    """Those of :data:`_NOT_AGNOSTIC2D` given away from their defaults."""
+    defaults = argparse.ArgumentParser()
+    configure(defaults)
+    return [
+        "--" + name.replace("_", "-")
+        for name in _NOT_AGNOSTIC2D
+        if getattr(args, name) != defaults.get_default(name)
+    ]
+
+
 def _run_agnostic2d(args: argparse.Namespace) -> int:
     """The 2D keypoint model has its own loop (two camera views per window, 3D targets)."""
     from robot_retarget.nn.agnostic2d_training import (
@@ -311,6 +334,14 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
 
     if args.resume:
         raise TrainArgumentError("--resume is not supported for agnostic2d; start a new run")
+    unused = _options_agnostic2d_ignores(args)
+    if unused:
+        raise TrainArgumentError(
+            f"{', '.join(unused)}: only the other models' training reads "
+            f"{'it' if len(unused) == 1 else 'them'}; agnostic2d validates and checkpoints "
+            "every --val-every steps and has no robot targets, discriminator or live noise: "
+            f"drop {'it' if len(unused) == 1 else 'them'}"
+        )
     weights = _model_config(args.loss_weight, "--loss-weight")
     unknown = sorted(set(weights) - {"triplet", "direction", "limb"})
     if unknown:
@@ -331,6 +362,7 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
         window_frames=args.window,
         fps=args.fps,
         validation_subjects=tuple(s for s in args.val_subjects.split(",") if s),
+        exclude_subjects=tuple(s for s in args.exclude_subjects.split(",") if s),
         val_every=args.val_every,
         seed=args.seed,
         lr=args.lr,

@@ -76,6 +76,7 @@ class KeypointTrainConfig:
     window_frames: int = 64
     fps: float = 30.0
     validation_subjects: tuple[str, ...] = ("06", "08", "12")
+    exclude_subjects: tuple[str, ...] = ()  # neither trained nor validated on (a test fold)
     val_every: int = 500
     seed: int = 0
     lr: float = 1e-3
@@ -396,6 +397,8 @@ def train_agnostic2d(
     dataset = load_dataset(
         cfg.data_dir, fps=cfg.fps, max_frames=cfg.max_frames, cache_dir=cfg.cache_dir
     )
+    if cfg.exclude_subjects:
+        dataset = dataset.without(cfg.exclude_subjects)
     train_set, val_set = dataset.split(cfg.validation_subjects)
     (out / "config.json").write_text(json.dumps({**asdict(cfg), "command": command}, indent=2))
     torch.manual_seed(cfg.seed)
@@ -419,6 +422,7 @@ def train_agnostic2d(
     meta_base = {
         "train_subjects": list(train_set.subjects),
         "validation_subjects": list(val_set.subjects),
+        "excluded_subjects": list(cfg.exclude_subjects),
         "command": command,
         "receptive_field_frames": model.receptive_field,
         "fps": cfg.fps,

@@ -131,6 +131,18 @@ class MotionDataset:
         digest = hashlib.sha256(f"{self.data_hash}:{','.join(keep)}".encode()).hexdigest()
         return MotionDataset(clips, digest, self.fps)
 
+    def without(self, subjects: Iterable[str]) -> MotionDataset:
+        """The clips of every subject but ``subjects`` (a held-out test fold: neither trained
+        nor validated on); raises DatasetError for a subject the data does not hold."""
+        drop = set(subjects)
+        unknown = sorted(drop - set(self.subjects))
+        if unknown:
+            raise DatasetError(
+                f"excluded subject(s) {unknown} are not in the data; subjects are "
+                f"{list(self.subjects)} (pass --exclude-subjects with some of them)"
+            )
+        return self.subset(s for s in self.subjects if s not in drop)
+
     def split(
         self, validation_subjects: Sequence[str] = DEFAULT_VALIDATION_SUBJECTS
     ) -> tuple[MotionDataset, MotionDataset]:

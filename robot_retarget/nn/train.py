@@ -53,6 +53,7 @@ from robot_retarget.nn.dataset import (
     DEFAULT_VALIDATION_SUBJECTS,
     DEFAULT_WINDOW_FRAMES,
     Augmentation,
+    DatasetError,
     MotionDataset,
     WindowSampler,
     fit_features,
@@ -520,13 +521,10 @@ def native_domains(dataset: MotionDataset) -> dict[str, dict[str, Any]]:
 def _exclude(dataset: MotionDataset, subjects: Sequence[str]) -> MotionDataset:
     """``dataset`` without ``subjects`` (a held-out test fold: neither trained nor validated
     on); raises TrainError for a subject the data does not hold."""
-    unknown = sorted(set(subjects) - set(dataset.subjects))
-    if unknown:
-        raise TrainError(
-            f"excluded subject(s) {unknown} are not in the data; subjects are "
-            f"{list(dataset.subjects)}"
-        )
-    return dataset.subset(s for s in dataset.subjects if s not in set(subjects))
+    try:
+        return dataset.without(subjects)
+    except DatasetError as exc:
+        raise TrainError(str(exc)) from exc
 
 
 def _check_data_parallel(config: TrainConfig, dp: DataParallel) -> None:

@@ -22,7 +22,7 @@ from robot_retarget.nn.agnostic2d_training import (
     render_window,
     rendered_batches,
 )
-from robot_retarget.nn.dataset import load_dataset
+from robot_retarget.nn.dataset import DatasetError, load_dataset
 from robot_retarget.nn.models.agnostic2d import rotation_6d_to_matrix
 from robot_retarget.runtime.agnostic2d import load_agnostic2d
 
@@ -107,3 +107,28 @@ def test_a_centred_model_trains_on_whole_windows_and_is_chosen_by_them(
     assert model.centered
     assert set(payload["metadata"]["validation"]) == {"direction_error_deg_clip"}
     assert load_agnostic2d(out / "best.npz").centered
+
+
+@pytest.mark.data
+def test_excluded_subjects_are_left_out_and_unused_options_refused(
+    shared_data_dir: Path, tmp_path: Path
+) -> None:
+    """``--exclude-subjects`` drops a held-out fold from training and validation alike (it was
+    once ignored here: fold models trained on the subjects they were meant to leave out);
+    options only the other models read are refused, not dropped silently."""
+    out = tmp_path / "run"
+    parser = _tiny_run(
+        shared_data_dir, out, "--val-subjects", "13", "--exclude-subjects", "06,08,12"
+    )
+    _model, payload = load_keypoint_checkpoint(out / "best.pt")
+    meta = payload["metadata"]
+    assert meta["validation_subjects"] == ["13"]
+    assert meta["excluded_subjects"] == ["06", "08", "12"]
+    assert not {"06", "08", "12", "13"} & set(meta["train_subjects"])
+    assert json.loads((out / "config.json").read_text())["exclude_subjects"] == ["06", "08", "12"]
+    base = ["--model", "agnostic2d", "--data", str(shared_data_dir / "mocap"), "--out"]
+    with pytest.raises(DatasetError, match=r"excluded subject\(s\) \['99'\]"):
+        train_cmd.run(parser.parse_args([*base, str(tmp_path / "x"), "--exclude-subjects", "99"]))
+    for option, value in (("--live-noise", "0.5"), ("--robots", "op3"), ("--log-every", "5")):
+        with pytest.raises(train_cmd.TrainArgumentError, match=f"{option}: only the other"):
+            train_cmd.run(parser.parse_args([*base, str(tmp_path / "y"), option, value]))
