@@ -27,6 +27,7 @@ from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
+from robot_retarget.cli.image_size_arg import image_size_argument
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
@@ -59,6 +60,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="udp-keypoints: keep the keypoint model's answer as it is (by default each bone is "
         "turned into the plane the image puts it in, the camera fitted on the frames so far; "
         "see README 'Video input')",
+    )
+    parser.add_argument(
+        "--image-size",
+        type=image_size_argument,
+        metavar="WxH",
+        help="udp-keypoints: the camera image's width and height in pixels, e.g. 1280x720 (its "
+        "centre is the camera's principal point for the image's planes; a packet's own "
+        "image_size wins; without either the camera is assumed to point at the performer's mean "
+        "hip position, which settles slowly when they walk about)",
     )
     parser.add_argument("--backend", choices=("sim", "dynamixel"), default="sim")
     add_port_argument(parser)
@@ -163,6 +173,11 @@ def run(args: argparse.Namespace) -> int:
             f"--no-image-planes is about the 2D keypoints of a udp-keypoints:// source, not "
             f"{args.source!r}; leave it out"
         )
+    if args.image_size is not None and not args.source.startswith("udp-keypoints://"):
+        raise RetargetError(
+            f"--image-size is about the camera of a udp-keypoints:// source, not "
+            f"{args.source!r}; leave it out"
+        )
     _check_remote(args)
     if args.view:
         from robot_retarget.viewer.dependency import require_viser
@@ -185,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
         keypoint_model=args.keypoint_model,
         clean_positions=not args.raw_positions,
         image_planes=args.image_planes,
+        image_size=args.image_size,
     )
     model = load_runtime_model(args.model or default_model_name())
     step = RetargetStep(  # refuses a foot lock the model lacks before it builds the solver

@@ -106,7 +106,10 @@ def keypoints_of(
     px, conf, valid = render_keypoints(
         cam_motion.positions(), cam_motion.global_quats(), motion.height_m, camera, rng, noise
     )
-    return KeypointSequence(px, conf, valid, CAMERA_FPS, source=str(motion.source_path))
+    size = (float(camera.width_px), float(camera.height_px))  # known to whoever has the video
+    return KeypointSequence(
+        px, conf, valid, CAMERA_FPS, source=str(motion.source_path), image_size=size
+    )
 
 
 def world_heading(lifted: HumanMotion, camera: VirtualCamera) -> HumanMotion:

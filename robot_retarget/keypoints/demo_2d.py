@@ -30,7 +30,10 @@ def demo_keypoints(motion: HumanMotion, seed: int = 0) -> KeypointSequence:
         motion.positions(), motion.global_quats(), motion.height_m, DEMO_CAMERA,
         np.random.default_rng(seed), EstimatorNoise(),
     )  # fmt: skip
-    return KeypointSequence(px, conf, valid, motion.fps, source="built-in routine, 2D")
+    size = (float(DEMO_CAMERA.width_px), float(DEMO_CAMERA.height_px))
+    return KeypointSequence(
+        px, conf, valid, motion.fps, source="built-in routine, 2D", image_size=size
+    )
 
 
 def demo_lifted_motion(motion: HumanMotion, model: Agnostic2DRuntime) -> HumanMotion:

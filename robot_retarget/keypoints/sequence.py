@@ -8,6 +8,7 @@ accident; the keypoint model sees them as masked, never as guessed positions.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,13 +24,16 @@ DEFAULT_MIN_CONFIDENCE = 0.3
 @dataclass(frozen=True, eq=False)
 class KeypointSequence:
     """``xy`` (T, 17, 2) pixels (NaN where invalid), ``confidence`` (T, 17) in [0, 1],
-    ``valid`` (T, 17), at ``fps``; ``source`` names the file or stream it came from."""
+    ``valid`` (T, 17), at ``fps``; ``source`` names the file or stream it came from;
+    ``image_size`` (width, height) in pixels where the input says (it places the camera's
+    principal point: :attr:`principal_px`)."""
 
     xy: FloatArray = field(repr=False)
     confidence: FloatArray = field(repr=False)
     valid: BoolArray = field(repr=False)
     fps: float
     source: str = ""
+    image_size: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         t = self.xy.shape[0]
@@ -39,6 +43,14 @@ class KeypointSequence:
             raise ValueError("confidence and valid must have shape (T, 17)")
         if not self.fps > 0.0:
             raise ValueError(f"fps must be positive, got {self.fps}")
+        if self.image_size is not None:
+            check_image_size(self.image_size)
+
+    @property
+    def principal_px(self) -> FloatArray | None:
+        """The image centre (2,), where a camera's principal point lies (to the few pixels a
+        lens is off), or None when the image size is not known."""
+        return image_centre(self.image_size)
 
     @property
     def num_frames(self) -> int:
@@ -58,6 +70,7 @@ class KeypointSequence:
         *,
         min_confidence: float = DEFAULT_MIN_CONFIDENCE,
         source: str = "",
+        image_size: tuple[float, float] | None = None,
     ) -> KeypointSequence:
         """Mark points with confidence < ``min_confidence`` or non-finite coordinates invalid."""
         xy = np.array(xy, dtype=np.float64)
@@ -65,4 +78,18 @@ class KeypointSequence:
         valid = np.isfinite(xy).all(axis=-1) & np.isfinite(conf) & (conf >= min_confidence)
         xy[~valid] = np.nan
         conf = np.where(np.isfinite(conf), conf, 0.0)
-        return cls(xy, conf, valid, float(fps), source)
+        return cls(xy, conf, valid, float(fps), source, image_size)
+
+
+def check_image_size(size: tuple[float, float]) -> tuple[float, float]:
+    """``size`` (width, height) if both are finite and positive; ValueError otherwise."""
+    if len(size) != 2 or not all(math.isfinite(v) and v > 0.0 for v in size):
+        raise ValueError(f"image size must be two positive pixel counts, got {size}")
+    return (float(size[0]), float(size[1]))
+
+
+def image_centre(size: tuple[float, float] | None) -> FloatArray | None:
+    """The centre (2,) of an image of ``size`` (width, height) pixels; None for None."""
+    if size is None:
+        return None
+    return 0.5 * np.asarray(size, dtype=np.float64)

@@ -62,12 +62,14 @@ def open_source(
     keypoint_model: str | None = None,
     clean_positions: bool = True,
     image_planes: bool = True,
+    image_size: tuple[float, float] | None = None,
 ) -> MotionSource:
     """A (not yet started) source for ``spec``; raises SourceError for anything unusable.
     ``clean_positions=False``: a UDP source solves position packets as sent (no frozen-joint,
     limb-swap or jitter cleanup, :mod:`robot_retarget.sources.position_cleanup`).
     ``image_planes=False``: a keypoint source keeps the keypoint model's answer as it is
-    (:mod:`robot_retarget.keypoints.online_reprojection`)."""
+    (:mod:`robot_retarget.keypoints.online_reprojection`); ``image_size`` (width, height px)
+    puts its camera's principal point at the image centre."""
     if spec.startswith("replay:"):
         from robot_retarget.errors import MotionFormatError
         from robot_retarget.motion.human_motion import load_motion
@@ -102,6 +104,12 @@ def open_source(
         check_bind_address(host, allow_remote, "UDP bind")  # before loading anything
         model = load_keypoint_model(keypoint_model)
         return UdpKeypointSource(
-            model, host, port, token=token, allow_remote=allow_remote, image_planes=image_planes
+            model,
+            host,
+            port,
+            token=token,
+            allow_remote=allow_remote,
+            image_planes=image_planes,
+            image_size=image_size,
         )
     raise SourceError(f"unknown source {spec!r}; use {SOURCE_FORMS}")

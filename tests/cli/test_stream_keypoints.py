@@ -50,6 +50,20 @@ def test_no_image_planes_is_refused_without_a_keypoint_source() -> None:
         stream_cmd.run(_args("--source", "udp://127.0.0.1:9750", "--no-image-planes"))
 
 
+def test_image_size_is_checked_and_refused_without_a_keypoint_source() -> None:
+    from robot_retarget.errors import RetargetError
+
+    assert _args("--source", "udp-keypoints://", "--image-size", "1280x720").image_size == (
+        1280.0,
+        720.0,
+    )
+    for bad in ("1280", "1280x0", "wide", "-5x3"):
+        with pytest.raises(SystemExit):
+            _args("--source", "udp-keypoints://", "--image-size", bad)
+    with pytest.raises(RetargetError, match="--image-size is about the camera"):
+        stream_cmd.run(_args("--source", "udp://127.0.0.1:9750", "--image-size", "640x480"))
+
+
 def _wait_until_bound(port: int, stop: threading.Event, timeout_s: float = 60.0) -> None:
     """Return once something listens on UDP ``port`` (binding it ourselves fails)."""
     deadline = time.monotonic() + timeout_s

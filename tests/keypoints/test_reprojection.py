@@ -260,3 +260,28 @@ def test_the_streams_timing_is_in_seconds_whatever_the_frame_rate() -> None:
     assert (1.0 - at60.rate) ** 2 == pytest.approx(1.0 - at30.rate)
     with pytest.raises(ValueError, match="fps must be positive"):
         OnlineReprojection(fps=0.0)
+
+
+def test_a_known_principal_point_is_the_cameras_and_a_new_one_starts_over(
+    truth: HumanMotion,
+) -> None:
+    """Given the image centre, the stream's camera uses it, not the hips' running mean; a
+    different one (another camera or resolution) forgets the camera fitted so far."""
+    seen = _seen(truth, 15.0)
+    model = load_keypoint_model()
+    quats = model.run_clip(seen.xy, seen.valid, causal=True, mirror_average=True)
+    centre = np.array([640.0, 360.0])
+    known, unknown = OnlineReprojection(principal_px=centre), OnlineReprojection()
+    for q, xy in zip(quats[: MIN_FRAMES + 3], seen.xy, strict=False):
+        known.step(q, xy)
+        unknown.step(q, xy)
+    assert known.camera is not None
+    assert unknown.camera is not None
+    np.testing.assert_array_equal(known.camera.principal_px, centre)
+    assert not np.allclose(unknown.camera.principal_px, centre)
+    known.set_principal(centre.copy())  # the same: nothing forgotten
+    assert known.camera is not None
+    known.set_principal(np.array([320.0, 240.0]))
+    assert known.camera is None
+    with pytest.raises(ValueError, match="principal point"):
+        known.set_principal(np.array([np.nan, 1.0]))

@@ -58,6 +58,7 @@ def test_mediapipe_landmarks_in_pixels() -> None:
     seq = load_keypoints(FIXTURES / "mediapipe_pose.json")
     assert seq.fps == 25.0
     assert seq.num_frames == 3
+    assert seq.image_size == (1000.0, 500.0)  # the stream's camera takes its centre
     mp = {Coco.nose: 0, Coco.left_eye: 2, Coco.right_ear: 8, Coco.left_shoulder: 11,
           Coco.right_hip: 24, Coco.left_ankle: 27}  # fmt: skip
     for coco, i in mp.items():

@@ -3,6 +3,7 @@ model's causal step), with the 3D UDP source's rules: loopback by default, token
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import socket
 import time
@@ -18,6 +19,7 @@ from robot_retarget.sources import open_source
 from robot_retarget.sources.base import SourceFrame
 from robot_retarget.sources.keypoints.udp_keypoints import UdpKeypointSource
 from robot_retarget.sources.keypoints.wire import decode_keypoints, encode_keypoints
+from robot_retarget.sources.wire import WireError
 
 
 @pytest.fixture(scope="module")
@@ -128,3 +130,52 @@ def test_the_stream_lifts_as_the_causal_clip_lifting_does() -> None:
         assert ("camera estimated at" in line) if planes else ("off" in line)
     fresh = UdpKeypointSource(model, "127.0.0.1", 0)
     assert "no camera fitted" in fresh.report_lines()[0]
+
+
+def test_a_known_image_size_puts_the_principal_point_at_the_image_centre() -> None:
+    """With the image size, from the packets or given to the source, the stream lifts as the
+    causal clip lifting of a sequence that knows it; the camera's principal point is the image
+    centre, not the hips' running mean, and the report says which it used."""
+    from robot_retarget.keypoints.demo_2d import demo_keypoints
+    from robot_retarget.keypoints.lift import lift_keypoints
+    from robot_retarget.motion.synthetic import demo_motion
+    from robot_retarget.runtime.agnostic2d import load_keypoint_model
+
+    model = load_keypoint_model()
+    seq = demo_keypoints(demo_motion(fps=30.0).frames(0, 40))
+    size = seq.image_size
+    assert size is not None
+    lifted = lift_keypoints(seq, model, causal=True).local_quats
+    by_hips = lift_keypoints(dataclasses.replace(seq, image_size=None), model, causal=True)
+    assert np.abs(lifted - by_hips.local_quats).max() > 1e-4  # the principal point matters
+    for in_packets in (True, False):
+        src = UdpKeypointSource(model, "127.0.0.1", 0, image_size=None if in_packets else size)
+        frames = []
+        for t in range(seq.num_frames):
+            person = np.concatenate([np.nan_to_num(seq.xy[t]), seq.confidence[t][:, None]], 1)
+            packet = encode_keypoints(
+                t + 1, t / 30.0, [person], image_size=size if in_packets else None
+            )
+            frame = src.handle_packet(packet, 0.0)
+            assert frame is not None
+            frames.append(frame.local_quats)
+        np.testing.assert_allclose(np.stack(frames), lifted, atol=2e-6)
+        (line,) = src.report_lines()
+        assert f"principal point at the image centre ({size[0] / 2:.0f}, {size[1] / 2:.0f})" in line
+    hips = UdpKeypointSource(model, "127.0.0.1", 0)
+    for t in range(10):
+        person = np.concatenate([np.nan_to_num(seq.xy[t]), seq.confidence[t][:, None]], 1)
+        hips.handle_packet(encode_keypoints(t + 1, t / 30.0, [person]), 0.0)
+    assert "mean hip position (no image size: pass --image-size" in hips.report_lines()[0]
+
+
+def test_image_sizes_in_packets_are_checked() -> None:
+    person = _person(100.0)
+    packet = decode_keypoints(encode_keypoints(1, 0.0, [person], image_size=(640, 480)), 0.3)
+    assert packet.image_size == (640.0, 480.0)
+    assert decode_keypoints(encode_keypoints(1, 0.0, [person]), 0.3).image_size is None
+    for bad in ([640], [640, 0], [640, "480"], [True, 480], "640x480", [640, 1e400]):
+        obj = json.loads(encode_keypoints(1, 0.0, [person]))
+        obj["image_size"] = bad
+        with pytest.raises(WireError, match="'image_size' must be"):
+            decode_keypoints(json.dumps(obj).encode(), 0.3)

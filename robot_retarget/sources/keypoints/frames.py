@@ -34,7 +34,14 @@ class PersonFrames:
         self._conf.append(conf)
         self._valid.append(valid.copy())
 
-    def sequence(self, fps: float, *, source: str) -> KeypointSequence:
+    def sequence(
+        self, fps: float, *, source: str, image_size: tuple[float, float] | None = None
+    ) -> KeypointSequence:
         return KeypointSequence(
-            np.stack(self._xy), np.stack(self._conf), np.stack(self._valid), float(fps), source
+            np.stack(self._xy),
+            np.stack(self._conf),
+            np.stack(self._valid),
+            float(fps),
+            source,
+            image_size,
         )

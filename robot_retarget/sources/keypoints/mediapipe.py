@@ -106,4 +106,4 @@ def read_mediapipe_json(
         if people and isinstance(people[0], dict):  # Solutions API: one person, no outer list
             people = [people]
         frames.add([_person(p, w, h, path, i, k, min_confidence) for k, p in enumerate(people)])
-    return frames.sequence(float(rate), source=str(path))
+    return frames.sequence(float(rate), source=str(path), image_size=(w, h))

@@ -26,7 +26,7 @@ import numpy as np
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, NUM_KEYPOINTS
 from robot_retarget.keypoints.lift import MIN_BODY_POINTS, standing_root
 from robot_retarget.keypoints.online_reprojection import MIN_SECONDS, OnlineReprojection
-from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE
+from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, image_centre
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.sources.base import DEFAULT_QUEUE_FRAMES, SourceFrame
@@ -57,6 +57,7 @@ class UdpKeypointSource(UdpDatagramSource):
         max_queue: int = DEFAULT_QUEUE_FRAMES,
         clock: Callable[[], float] = time.monotonic,
         image_planes: bool = True,
+        image_size: tuple[float, float] | None = None,
     ) -> None:
         super().__init__(
             host,
@@ -72,7 +73,14 @@ class UdpKeypointSource(UdpDatagramSource):
         self._root = standing_root(self._skeleton)
         self._tracker = PersonTracker()
         self._step = model.online()
-        self._planes = OnlineReprojection(self._skeleton, fps=nominal_fps) if image_planes else None
+        # The image size (from --image-size, or each packet's own) puts the principal point
+        # at the image centre; a packet's size overrides the one given here.
+        principal = image_centre(image_size)
+        self._planes = (
+            OnlineReprojection(self._skeleton, fps=nominal_fps, principal_px=principal)
+            if image_planes
+            else None
+        )
 
     def report_lines(self) -> tuple[str, ...]:
         """The camera the image's planes fitted (stream prints it at the end)."""
@@ -84,9 +92,17 @@ class UdpKeypointSource(UdpDatagramSource):
                 f"image planes: no camera fitted (less than {MIN_SECONDS:g} s of frames with a "
                 "body)",
             )
+        if self._planes.principal_px is None:
+            principal = (
+                "principal point at the performer's mean hip position (no image size: pass "
+                "--image-size WxH or send image_size)"
+            )
+        else:
+            x, y = self._planes.principal_px
+            principal = f"principal point at the image centre ({x:.0f}, {y:.0f}) px"
         return (
             f"image planes: camera estimated at {math.degrees(camera.elevation_rad):.0f}° "
-            f"elevation, focal {camera.focal_px:.0f} px",
+            f"elevation, focal {camera.focal_px:.0f} px, {principal}",
         )
 
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
@@ -109,6 +125,8 @@ class UdpKeypointSource(UdpDatagramSource):
             xy, _conf, valid = pkt.people[chosen]
         local = self._step.step(xy, valid)  # the model sees every camera frame, in time
         if self._planes is not None:  # so does the camera fit, as lift_keypoints(causal=True)
+            if pkt.image_size is not None:  # a new size resets the camera fitted so far
+                self._planes.set_principal(image_centre(pkt.image_size))
             local = self._planes.step(local, np.where(valid[:, None], xy, np.nan))
         if int(valid[_BODY].sum()) < MIN_BODY_POINTS:
             # Nobody (or too little of a body) in view: no frame, so the control loop holds

@@ -4,7 +4,12 @@ UTF-8 JSON object, at most MAX_JSON_BYTES (a frame with 8 people fits easily)::
 
     {"v": 1, "seq": 42, "t": 12.345, "kind": "coco17",
      "people": [{"keypoints": [[x, y, score], ... 17]}, ...],   # pixels, COCO-17 order
+     "image_size": [1280, 720],                                  # optional: width, height
      "token": "secret"}                                          # only when the receiver wants one
+
+``image_size`` (optional) is the camera image's width and height in pixels: its centre is the
+camera's principal point, which the image's planes use (otherwise they assume the camera points
+at the performer's mean hip position; see robot_retarget.keypoints.online_reprojection).
 
 A person's points may also be 17 [x, y] pairs with ``keypoint_scores`` (MMPose) or 51 flat
 values (robot_retarget.sources.keypoints.coco_jsonl). ``people`` may be empty (nobody in view).
@@ -37,6 +42,7 @@ class KeypointPacket:
     t_s: float
     people: list[Person]
     token: str
+    image_size: tuple[float, float] | None = None
 
 
 def decode_keypoints(data: bytes, min_confidence: float) -> KeypointPacket:
@@ -72,10 +78,26 @@ def decode_keypoints(data: bytes, min_confidence: float) -> KeypointPacket:
         if not np.isfinite(xy[valid]).all():
             raise WireError("keypoints contain NaN or infinite values", reason="nan")
         people.append((xy, conf, valid))
-    return KeypointPacket(seq, float(t_s), people, token)
+    return KeypointPacket(seq, float(t_s), people, token, _image_size(obj.get("image_size")))
 
 
-def encode_keypoints(seq: int, t_s: float, people: list[npt.ArrayLike], token: str = "") -> bytes:
+def _image_size(value: Any) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    ok = isinstance(value, list) and len(value) == 2
+    ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+    if not ok or not all(math.isfinite(v) and v > 0 for v in value):
+        raise WireError("'image_size' must be [width, height], two positive pixel counts")
+    return (float(value[0]), float(value[1]))
+
+
+def encode_keypoints(
+    seq: int,
+    t_s: float,
+    people: list[npt.ArrayLike],
+    token: str = "",
+    image_size: tuple[float, float] | None = None,
+) -> bytes:
     """A packet: ``people`` as (17, 3) arrays of x, y, score (NaN coordinates → score 0)."""
     rows = []
     for p in people:
@@ -90,6 +112,8 @@ def encode_keypoints(seq: int, t_s: float, people: list[npt.ArrayLike], token: s
         "kind": KIND_COCO17,
         "people": rows,
     }
+    if image_size is not None:
+        obj["image_size"] = [float(image_size[0]), float(image_size[1])]
     if token:
         obj["token"] = token
     return json.dumps(obj, separators=(",", ":")).encode("utf-8")
