@@ -29,6 +29,7 @@ from typing import Any, Protocol, TypeVar
 import numpy as np
 
 from robot_retarget.array_types import BoolArray, Float32Array, FloatArray
+from robot_retarget.casadi_jit import CompiledFunction
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.coco17 import FLIP_PAIRS, NUM_KEYPOINTS
@@ -36,6 +37,11 @@ from robot_retarget.keypoints.normalize import (
     FEATURES_PER_FRAME,
     KeypointNormalizer,
     normalize_sequences,
+)
+from robot_retarget.runtime.agnostic2d_graph import (
+    answer_function,
+    features_function,
+    initial_state,
 )
 from robot_retarget.runtime.frame import f32_layer
 from robot_retarget.runtime.npz_file import read_runtime_npz, write_runtime_npz
@@ -342,6 +348,11 @@ class _StreamSteps:
 
     def step_features(self, features: FloatArray) -> FloatArray:
         """One frame's features (B, 51) → local rotations (B, 22, 4)."""
+        out = self.head_outputs(features)
+        return rotation_6d_to_quat(np.asarray(out, dtype=np.float64).reshape(-1, _J, 6))
+
+    def head_outputs(self, features: FloatArray) -> Float32Array:
+        """One frame's features (B, 51) → the head's 6D rotations (B, 22·6), float32."""
         x = np.asarray(features, dtype=np.float32).T  # (51, B)
         h = x
         for (flat, bias, _k), d, buf in zip(self._layers, self._dil, self._buffers, strict=True):
@@ -356,8 +367,8 @@ class _StreamSteps:
             codes.append(_dense_apply(code, total * np.float32(1.0 / self._count)))
         z = np.concatenate(codes)
         h1, h2 = self._head
-        out = _dense_apply(h2, _lrelu(_dense_apply(h1, z))).T  # (B, 22·6)
-        return rotation_6d_to_quat(np.asarray(out, dtype=np.float64).reshape(-1, _J, 6))
+        out: Float32Array = _dense_apply(h2, _lrelu(_dense_apply(h1, z))).T  # (B, 22·6)
+        return out
 
     def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
         """COCO-17 pixels (B, 17, 2) and visibility (B, 17) → (B, 22, 4)."""
@@ -386,21 +397,48 @@ class Agnostic2DStep:
 class MirrorAveragedStep:
     """The causal step on the image and on its mirror (two streams, one product per layer),
     answers averaged: the frame-by-frame twin of ``run_clip(causal=True,
-    mirror_average=True)``."""
+    mirror_average=True)``. The features before the dense layers and the rotations after them
+    run as two compiled calls (robot_retarget.runtime.agnostic2d_graph); ``compiled=False``
+    runs the numpy reference instead."""
 
-    def __init__(self, weights: Agnostic2DWeights) -> None:
+    def __init__(self, weights: Agnostic2DWeights, *, compiled: bool = True) -> None:
         self._steps = _StreamSteps(weights, 2)
+        self._calls = _MirrorStepCalls() if compiled else None
 
     def reset(self) -> None:
         self._steps.reset()
+        if self._calls is not None:
+            self._calls.state[:] = initial_state()
 
     def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
         """COCO-17 pixels (17, 2) (NaN where invalid) and visibility (17,) → (22, 4)."""
         p = np.asarray(xy, dtype=np.float64)
         v = np.asarray(valid, dtype=bool)
+        g = self._calls
+        if g is not None:
+            g.xy[:] = np.where(v[:, None], p, 0.0).reshape(-1)
+            g.seen[:] = v
+            g.features()
+            g.state[:] = g.next_state
+            g.head[:] = self._steps.head_outputs(g.both.reshape(2, FEATURES_PER_FRAME)).reshape(-1)
+            g.answer()
+            return g.local.reshape(_J, 4).copy()
         flipped, flipped_valid = mirror_image(p, v)
         both = self._steps.step(np.stack([p, flipped]), np.stack([v, flipped_valid]))
         return average_with_mirrored(both[0], both[1])
+
+
+class _MirrorStepCalls:
+    """The two compiled graphs of the mirrored step, their arrays bound once."""
+
+    def __init__(self) -> None:
+        self.features = CompiledFunction(features_function())
+        self.xy, self.seen, self.state = self.features.args
+        self.both, self.next_state = self.features.res
+        self.state[:] = initial_state()
+        self.answer = CompiledFunction(answer_function())
+        (self.head,) = self.answer.args
+        (self.local,) = self.answer.res
 
 
 def save_agnostic2d(model: Agnostic2DRuntime, path: str | os.PathLike[str]) -> Path:
