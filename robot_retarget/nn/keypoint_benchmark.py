@@ -1,11 +1,13 @@
 """``bench model --model agnostic2d``: the keypoint model's time per frame.
 
-Rows: ``online-numpy`` (the causal step ``stream`` runs: features, encoders, head → 22
-rotations, one camera frame at a time, for the image and its mirror), ``online-numpy-single``
-(the same step on the image alone, timed alternately with it), ``clip-numpy`` (the causal
-model's whole-clip pass on the image alone, time / frames), ``convert-numpy`` (``convert``'s
-lifting: the shipped clip model, every model of its ensemble, on the image and its mirror,
-time / frames) and ``clip`` (the torch model's forward pass, time / frames).
+Rows: ``online`` (the causal step ``stream`` runs: features, encoders, head → 22 rotations,
+one camera frame at a time, for the image and its mirror, the features and rotations
+compiled), ``online-numpy`` (the same step all in numpy, its reference) and
+``online-numpy-single`` (the numpy step on the image alone), the three timed alternately,
+``clip-numpy`` (the causal model's whole-clip pass on the image alone, time / frames),
+``convert-numpy`` (``convert``'s lifting: the shipped clip model, every model of its ensemble,
+on the image and its mirror, time / frames) and ``clip`` (the torch model's forward pass,
+time / frames).
 Input: the built-in demo clip seen by a virtual camera with estimator-like noise (timing does
 not depend on it).
 """
@@ -32,7 +34,11 @@ def time_keypoint_model(
     from robot_retarget.keypoints.virtual_camera import VirtualCamera
     from robot_retarget.motion.synthetic import demo_motion
     from robot_retarget.nn.agnostic2d_training import load_keypoint_checkpoint
-    from robot_retarget.runtime.agnostic2d import SHIPPED_KEYPOINT_MODEL, load_keypoint_model
+    from robot_retarget.runtime.agnostic2d import (
+        SHIPPED_KEYPOINT_MODEL,
+        MirrorAveragedStep,
+        load_keypoint_model,
+    )
 
     motion = demo_motion(fps=30.0)
     cam = VirtualCamera(0.4, math.radians(15.0), 4.0, 1000.0)
@@ -44,11 +50,14 @@ def time_keypoint_model(
     runtime = load_keypoint_model()
     convert_model = load_keypoint_model(whole_clip=True)
     # The two steps alternate frame by frame, so both see the same machine load.
-    mirrored, single = runtime.online(), runtime.online(mirror_average=False)
+    compiled, single = runtime.online(), runtime.online(mirror_average=False)
+    mirrored = MirrorAveragedStep(runtime.weights, compiled=False)
+    online_compiled: list[float] = []
     online: list[float] = []
     online_single: list[float] = []
     for i in range(frames + warmup):
-        for step, times in ((mirrored, online), (single, online_single)):
+        steps = ((compiled, online_compiled), (mirrored, online), (single, online_single))
+        for step, times in steps:
             t0 = time.perf_counter()
             step.step(px[i % n], valid[i % n])
             if i >= warmup:
@@ -71,7 +80,8 @@ def time_keypoint_model(
             model(feats, False)
             clip_torch.append((time.perf_counter() - t0) / n)
     out = []
-    rows = (("online-numpy", online, frames), ("online-numpy-single", online_single, frames),
+    rows = (("online", online_compiled, frames), ("online-numpy", online, frames),
+            ("online-numpy-single", online_single, frames),
             ("clip-numpy", clip_np, n), ("convert-numpy", convert_np, n),
             ("clip", clip_torch, n))  # fmt: skip
     for mode, durations, count in rows:

@@ -308,11 +308,13 @@ def test_keypoint_benchmark_times_both_steps_side_by_side() -> None:
     rows = time_keypoint_model(frames=20, warmup=2, repeats=1, threads=1)
     modes = {r["mode"]: r for r in rows}
     assert set(modes) == {
+        "online",
         "online-numpy",
         "online-numpy-single",
         "clip-numpy",
         "convert-numpy",
         "clip",
     }
-    assert modes["online-numpy"]["frames"] == modes["online-numpy-single"]["frames"] == 20
+    assert modes["online"]["frames"] == modes["online-numpy"]["frames"] == 20
+    assert modes["online-numpy-single"]["frames"] == 20
     assert all(r["median_ms"] > 0.0 for r in rows)
