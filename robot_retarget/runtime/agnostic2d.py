@@ -22,6 +22,7 @@ sha256, step and training command in ``metadata["ensemble"]``.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
@@ -282,21 +283,14 @@ class Agnostic2DRuntime:
     def online(self, *, mirror_average: bool = True) -> KeypointStep:
         """The causal step for ``stream``; ``mirror_average`` (default) also steps the mirrored
         image, as ``run_clip(causal=True, mirror_average=True)``: twice the arithmetic, 0.7°
-        less lifted-pose error on the validation clips (11.6° → 10.9°). A centred model has
-        no step (ModelLoadError)."""
+        less lifted-pose error on the validation clips (11.6° → 10.9°). An ensemble of causal
+        models steps each and averages their answers, as :meth:`run_features`. A centred
+        model has no step (ModelLoadError)."""
         if self.centered:
             raise ModelLoadError(_LOOKS_AHEAD, path=self.path, model=self.name)
-        if self.ensemble:
-            raise ModelLoadError(
-                f"this keypoint model is an ensemble of {len(self.members)} models: it lifts "
-                "whole clips (convert); stream with a single causal one such as the shipped "
-                "agnostic2d",
-                path=self.path,
-                model=self.name,
-            )
         if mirror_average:
-            return MirrorAveragedStep(self.weights)
-        return Agnostic2DStep(self.weights)
+            return MirrorAveragedStep(self.weights, ensemble=self.ensemble)
+        return Agnostic2DStep(self.weights, ensemble=self.ensemble)
 
 
 def mirror_image(xy: FloatArray, valid: BoolArray) -> tuple[FloatArray, BoolArray]:
@@ -376,37 +370,56 @@ class _StreamSteps:
 
 
 class Agnostic2DStep:
-    """The causal model one frame at a time: ``step(xy (17, 2), valid (17,)) → (22, 4)``."""
+    """The causal model one frame at a time: ``step(xy (17, 2), valid (17,)) → (22, 4)``
+    (``ensemble``: further causal models, their answers averaged, as ``run_features``)."""
 
-    def __init__(self, weights: Agnostic2DWeights) -> None:
-        self._steps = _StreamSteps(weights, 1)
+    def __init__(
+        self, weights: Agnostic2DWeights, *, ensemble: Sequence[Agnostic2DWeights] = ()
+    ) -> None:
+        self._steps = [_StreamSteps(w, 1) for w in (weights, *ensemble)]
+        self._normalizer = KeypointNormalizer(1)
 
     def reset(self) -> None:
-        self._steps.reset()
+        self._normalizer.reset()
+        for steps in self._steps:
+            steps.reset()
 
     def step_features(self, features: FloatArray) -> FloatArray:
         """One frame's features (51,) → local rotations (22, 4)."""
-        return self._steps.step_features(np.asarray(features, dtype=np.float64)[None])[0]
+        x = np.asarray(features, dtype=np.float64)[None]
+        answers = [steps.step_features(x)[0] for steps in self._steps]
+        return answers[0] if len(answers) == 1 else mean_rotation(answers)
 
     def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
         """COCO-17 pixels (17, 2) (NaN where invalid) and visibility (17,) → (22, 4)."""
         v = np.asarray(valid, dtype=bool).reshape(1, NUM_KEYPOINTS)
-        return self._steps.step(np.asarray(xy, dtype=np.float64)[None], v)[0]
+        features = self._normalizer.step(np.asarray(xy, dtype=np.float64)[None], v)
+        return self.step_features(features[0])
 
 
 class MirrorAveragedStep:
     """The causal step on the image and on its mirror (two streams, one product per layer),
     answers averaged: the frame-by-frame twin of ``run_clip(causal=True,
-    mirror_average=True)``. The features before the dense layers and the rotations after them
-    run as two compiled calls (robot_retarget.runtime.agnostic2d_graph); ``compiled=False``
-    runs the numpy reference instead."""
+    mirror_average=True)`` (``ensemble``: further causal models, every model's answers
+    averaged as ``run_clip`` does). The features before the dense layers and the rotations
+    after them run as two compiled calls (robot_retarget.runtime.agnostic2d_graph);
+    ``compiled=False`` runs the numpy reference instead."""
 
-    def __init__(self, weights: Agnostic2DWeights, *, compiled: bool = True) -> None:
-        self._steps = _StreamSteps(weights, 2)
-        self._calls = _MirrorStepCalls() if compiled else None
+    def __init__(
+        self,
+        weights: Agnostic2DWeights,
+        *,
+        ensemble: Sequence[Agnostic2DWeights] = (),
+        compiled: bool = True,
+    ) -> None:
+        self._members = [_StreamSteps(w, 2) for w in (weights, *ensemble)]
+        self._normalizer = KeypointNormalizer(2)
+        self._calls = _MirrorStepCalls(len(self._members)) if compiled else None
 
     def reset(self) -> None:
-        self._steps.reset()
+        self._normalizer.reset()
+        for steps in self._members:
+            steps.reset()
         if self._calls is not None:
             self._calls.state[:] = initial_state()
 
@@ -420,24 +433,33 @@ class MirrorAveragedStep:
             g.seen[:] = v
             g.features()
             g.state[:] = g.next_state
-            g.head[:] = self._steps.head_outputs(g.both.reshape(2, FEATURES_PER_FRAME)).reshape(-1)
+            features = g.both.reshape(2, FEATURES_PER_FRAME)
+            for m, steps in enumerate(self._members):
+                g.heads[m] = steps.head_outputs(features)
             g.answer()
             return g.local.reshape(_J, 4).copy()
         flipped, flipped_valid = mirror_image(p, v)
-        both = self._steps.step(np.stack([p, flipped]), np.stack([v, flipped_valid]))
-        return average_with_mirrored(both[0], both[1])
+        features = self._normalizer.step(np.stack([p, flipped]), np.stack([v, flipped_valid]))
+        answers = [steps.step_features(features) for steps in self._members]
+        if len(answers) == 1:
+            direct, mirrored = answers[0]
+        else:  # each image's answers averaged over the models, then the two (as run_clip)
+            direct = mean_rotation([a[0] for a in answers])
+            mirrored = mean_rotation([a[1] for a in answers])
+        return average_with_mirrored(direct, mirrored)
 
 
 class _MirrorStepCalls:
-    """The two compiled graphs of the mirrored step, their arrays bound once."""
+    """The two compiled graphs of the mirrored step of ``members`` models, arrays bound once."""
 
-    def __init__(self) -> None:
+    def __init__(self, members: int) -> None:
         self.features = CompiledFunction(features_function())
         self.xy, self.seen, self.state = self.features.args
         self.both, self.next_state = self.features.res
         self.state[:] = initial_state()
-        self.answer = CompiledFunction(answer_function())
-        (self.head,) = self.answer.args
+        self.answer = CompiledFunction(answer_function(members))
+        (head,) = self.answer.args
+        self.heads = head.reshape(members, 2, _J * 6)  # a view: writes land in the bound array
         (self.local,) = self.answer.res
 
 

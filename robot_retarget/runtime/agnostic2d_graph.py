@@ -6,9 +6,9 @@ layers stay in numpy (BLAS).
   features of the image and of its left-right mirror (robot_retarget.keypoints.normalize run
   on both; the mirror's are the image's, keypoints swapped and x negated, exactly, so its
   state is the image's) and the next state.
-- :func:`answer_function`: the head's outputs for the image and its mirror (22 6D rotations
-  each) → the mirror-averaged local rotations (runtime.agnostic2d.rotation_6d_to_quat, then
-  average_with_mirrored).
+- :func:`answer_function`: each model's head outputs for the image and its mirror (22 6D
+  rotations each) → the local rotations (runtime.agnostic2d.rotation_6d_to_quat; with several
+  models, each image's answers averaged over them, mean_rotation; then average_with_mirrored).
 
 Keypoints enter as values with NaN replaced by 0 and a 0/1 mask; the normaliser's NaN states
 ("not set yet") as a value and a 0/1 flag. The numpy code is the reference: the tests hold
@@ -116,22 +116,37 @@ def _min(xs: list[ca.SX]) -> ca.SX:
 
 
 @memoized_graph
-def answer_function() -> ca.Function:
-    """``head 2·132 → local 22·4``: the image's and the mirror's 6D rotations to quaternions
-    (w ≥ 0), the mirror's answer mirrored back and averaged with the image's."""
-    head = ca.SX.sym("head", 2 * _J * 6)
-    direct = [_quat_6d([head[6 * j + i] for i in range(6)]) for j in range(_J)]
-    base = _J * 6
-    from_mirror = [_quat_6d([head[base + 6 * j + i] for i in range(6)]) for j in range(_J)]
+def answer_function(members: int = 1) -> ca.Function:
+    """``head members·2·132 → local 22·4``: each model's 6D rotations of the image and of its
+    mirror to quaternions (w ≥ 0); each image's averaged over the models (mean_rotation); the
+    mirror's answer mirrored back and averaged with the image's (average_with_mirrored)."""
+    head = ca.SX.sym("head", members * 2 * _J * 6)
+
+    def quats(m: int, image: int) -> list[sq.Quat]:
+        base = (2 * m + image) * _J * 6
+        return [_quat_6d([head[base + 6 * j + i] for i in range(6)]) for j in range(_J)]
+
+    direct, from_mirror = ([quats(m, image) for m in range(members)] for image in (0, 1))
     out: list[ca.SX] = []
     for j in range(_J):
-        a = direct[j]
-        w, x, y, z = from_mirror[JOINT_MIRROR[j]]
-        b = (w, x, -y, -z)  # mirror_rotations: joints swapped, y and z negated
-        dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
-        sign = ca.if_else(dot < 0.0, -1.0, 1.0)  # b into a's hemisphere
-        out.extend(sq.normalize(tuple(a[i] + sign * b[i] for i in range(4))))
-    return compile_graph("keypoint_stream_answer", [head], [ca.vertcat(*out)])
+        a = _mean([answers[j] for answers in direct])
+        w, x, y, z = _mean([answers[JOINT_MIRROR[j]] for answers in from_mirror])
+        out.extend(_mean([a, (w, x, -y, -z)]))  # mirror_rotations: swapped, y and z negated
+    return compile_graph(f"keypoint_stream_answer_{members}", [head], [ca.vertcat(*out)])
+
+
+def _mean(qs: list[sq.Quat]) -> sq.Quat:
+    """runtime.agnostic2d.mean_rotation: each turned into the first one's hemisphere, summed,
+    normalised (one rotation: itself)."""
+    if len(qs) == 1:
+        return qs[0]
+    first = qs[0]
+    total = list(first)
+    for q in qs[1:]:
+        dot = first[0] * q[0] + first[1] * q[1] + first[2] * q[2] + first[3] * q[3]
+        sign = ca.if_else(dot < 0.0, -1.0, 1.0)
+        total = [t + sign * c for t, c in zip(total, q, strict=True)]
+    return sq.normalize(total)
 
 
 def _quat_6d(d6: list[ca.SX]) -> sq.Quat:
