@@ -135,25 +135,24 @@ class MotionDataset:
         """The clips of every subject but ``subjects`` (a held-out test fold: neither trained
         nor validated on); raises DatasetError for a subject the data does not hold."""
         drop = set(subjects)
-        unknown = sorted(drop - set(self.subjects))
+        self._check_known(drop, "excluded", "--exclude-subjects")
+        return self.subset(s for s in self.subjects if s not in drop)
+
+    def _check_known(self, subjects: set[str], role: str, option: str) -> None:
+        """DatasetError naming the ``subjects`` the data does not hold, if any."""
+        unknown = sorted(subjects - set(self.subjects))
         if unknown:
             raise DatasetError(
-                f"excluded subject(s) {unknown} are not in the data; subjects are "
-                f"{list(self.subjects)} (pass --exclude-subjects with some of them)"
+                f"{role} subject(s) {unknown} are not in the data; subjects are "
+                f"{list(self.subjects)} (pass {option} with some of them)"
             )
-        return self.subset(s for s in self.subjects if s not in drop)
 
     def split(
         self, validation_subjects: Sequence[str] = DEFAULT_VALIDATION_SUBJECTS
     ) -> tuple[MotionDataset, MotionDataset]:
         """(training, validation) by subject; raises DatasetError if either would be empty."""
         val = set(validation_subjects)
-        unknown = sorted(val - set(self.subjects))
-        if unknown:
-            raise DatasetError(
-                f"validation subject(s) {unknown} are not in the data; subjects are "
-                f"{list(self.subjects)} (pass --val-subjects with some of them)"
-            )
+        self._check_known(val, "validation", "--val-subjects")
         train = [s for s in self.subjects if s not in val]
         if not train:
             raise DatasetError(
