@@ -72,6 +72,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
     )  # fmt: skip
     people = np.concatenate([np.nan_to_num(px), conf[..., None]], axis=-1)
     size = (float(camera.width_px), float(camera.height_px))
+    known_size: tuple[float, float] | None = None
     bystander = people.copy()
     bystander[..., :2] = bystander[..., :2] * 0.4 + 20.0
     keypoint_step = load_keypoint_model(args.keypoint_model).online()
@@ -106,7 +107,9 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
             t1 = time.perf_counter()
             lifted = keypoint_step.step(xy, valid)
             t2 = time.perf_counter()
-            planes.set_principal(image_centre(pkt.image_size))  # as the source does
+            if pkt.image_size != known_size:  # as the source does: only when it changes
+                known_size = pkt.image_size
+                planes.set_principal(image_centre(known_size))
             previous, current = current, planes.step(lifted, np.where(valid[:, None], xy, np.nan))
             t3 = time.perf_counter()
             arrived = t3 - t0

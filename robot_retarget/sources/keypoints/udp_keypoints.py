@@ -75,6 +75,7 @@ class UdpKeypointSource(UdpDatagramSource):
         self._step = model.online()
         # The image size (from --image-size, or each packet's own) puts the principal point
         # at the image centre; a packet's size overrides the one given here.
+        self._image_size = image_size
         principal = image_centre(image_size)
         self._planes = (
             OnlineReprojection(self._skeleton, fps=nominal_fps, principal_px=principal)
@@ -125,7 +126,8 @@ class UdpKeypointSource(UdpDatagramSource):
             xy, _conf, valid = pkt.people[chosen]
         local = self._step.step(xy, valid)  # the model sees every camera frame, in time
         if self._planes is not None:  # so does the camera fit, as lift_keypoints(causal=True)
-            if pkt.image_size is not None:  # a new size resets the camera fitted so far
+            if pkt.image_size is not None and pkt.image_size != self._image_size:
+                self._image_size = pkt.image_size  # a new size resets the camera fitted so far
                 self._planes.set_principal(image_centre(pkt.image_size))
             local = self._planes.step(local, np.where(valid[:, None], xy, np.nan))
         if int(valid[_BODY].sum()) < MIN_BODY_POINTS:
