@@ -308,9 +308,9 @@ def average_with_mirrored(direct: FloatArray, from_mirrored: FloatArray) -> Floa
 
 
 class _StreamSteps:
-    """The causal model one frame at a time for ``streams`` independent streams at once: each
-    layer is one matrix product on a column per stream (the mirrored image rides along for
-    little more than the cost of one)."""
+    """One causal model's dense layers one frame at a time for ``streams`` independent streams
+    at once (the callers compute the features): each layer is one matrix product on a column
+    per stream (the mirrored image rides along for little more than the cost of one)."""
 
     def __init__(self, weights: Agnostic2DWeights, streams: int) -> None:
         if weights.centered:
@@ -327,11 +327,9 @@ class _StreamSteps:
         self._static = [[_dense(c) for c in enc] for enc in (weights.skeleton, weights.view)]
         self._head = [_dense(c) for c in weights.head]
         self._dil = [int(d) for d in weights.dilations]
-        self._normalizer = KeypointNormalizer(streams)
         self.reset()
 
     def reset(self) -> None:
-        self._normalizer.reset()
         b = self._streams
         self._buffers = [
             np.zeros((flat.shape[1] // k, (k - 1) * d + 1, b), dtype=np.float32)
@@ -363,10 +361,6 @@ class _StreamSteps:
         h1, h2 = self._head
         out: Float32Array = _dense_apply(h2, _lrelu(_dense_apply(h1, z))).T  # (B, 22·6)
         return out
-
-    def step(self, xy: FloatArray, valid: BoolArray) -> FloatArray:
-        """COCO-17 pixels (B, 17, 2) and visibility (B, 17) → (B, 22, 4)."""
-        return self.step_features(self._normalizer.step(xy, valid))
 
 
 class Agnostic2DStep:
