@@ -106,9 +106,8 @@ def keypoints_of(
     px, conf, valid = render_keypoints(
         cam_motion.positions(), cam_motion.global_quats(), motion.height_m, camera, rng, noise
     )
-    size = (float(camera.width_px), float(camera.height_px))  # known to whoever has the video
-    return KeypointSequence(
-        px, conf, valid, CAMERA_FPS, source=str(motion.source_path), image_size=size
+    return KeypointSequence(  # the image size is known to whoever has the video
+        px, conf, valid, CAMERA_FPS, source=str(motion.source_path), image_size=camera.image_size
     )
 
 

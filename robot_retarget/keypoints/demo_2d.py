@@ -30,9 +30,13 @@ def demo_keypoints(motion: HumanMotion, seed: int = 0) -> KeypointSequence:
         motion.positions(), motion.global_quats(), motion.height_m, DEMO_CAMERA,
         np.random.default_rng(seed), EstimatorNoise(),
     )  # fmt: skip
-    size = (float(DEMO_CAMERA.width_px), float(DEMO_CAMERA.height_px))
     return KeypointSequence(
-        px, conf, valid, motion.fps, source="built-in routine, 2D", image_size=size
+        px,
+        conf,
+        valid,
+        motion.fps,
+        source="built-in routine, 2D",
+        image_size=DEMO_CAMERA.image_size,
     )
 
 

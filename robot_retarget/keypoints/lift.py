@@ -90,7 +90,7 @@ def _lift(
     if image_planes and causal:
         from robot_retarget.keypoints.online_reprojection import OnlineReprojection
 
-        planes = OnlineReprojection(skeleton, fps=sequence.fps, principal_px=sequence.principal_px)
+        planes = OnlineReprojection(skeleton, fps=sequence.fps, image_size=sequence.image_size)
         quats = np.stack([planes.step(q, xy) for q, xy in zip(quats, sequence.xy, strict=True)])
         camera = planes.camera
     elif image_planes:

@@ -5,7 +5,7 @@ frame at a time, the camera (:mod:`robot_retarget.keypoints.camera_fit`) fitted 
 each one; a live stream has neither. Here the camera is fitted on the frames so far: the
 candidate elevations' direction costs are sums over frames, so they are kept as running sums;
 the image scale is a running mean of its logarithm. The principal point is the image centre
-where the image size is known (``principal_px``), else a running mean of the hip centre,
+where the image size is known (``image_size``), else a running mean of the hip centre,
 which is slow to settle for a performer who crosses the image. The lifted performer with the
 running mean → the image centre (the stream's causal model, every second or third clip through
 the 12 evaluation views): validation subjects 06, 08, 12, who walk about, 8.43° → 8.15° (the
@@ -46,6 +46,7 @@ from robot_retarget.keypoints.reprojection import (
     apply_changes,
     plane_changes,
 )
+from robot_retarget.keypoints.sequence import check_image_size, image_centre
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton
 
@@ -71,8 +72,8 @@ class OnlineReprojection:
     for one camera frame turned into the image's planes, the camera fitted on the frames so
     far (module docstring). ``reset()`` forgets the camera (a new sender, maybe a new one).
     ``compiled=False`` runs the numpy reference instead of the compiled graphs.
-    ``principal_px`` (2,): the image centre, where the image size is known (module
-    docstring); it may be set later (:meth:`set_principal`)."""
+    ``image_size`` (width, height px): its centre is the principal point (module docstring);
+    it may be given later (:meth:`set_image_size`)."""
 
     def __init__(
         self,
@@ -80,7 +81,7 @@ class OnlineReprojection:
         fps: float = 30.0,
         *,
         compiled: bool = True,
-        principal_px: FloatArray | None = None,
+        image_size: tuple[float, float] | None = None,
     ) -> None:
         if not (math.isfinite(fps) and fps > 0.0):
             raise ValueError(f"fps must be positive, got {fps}")
@@ -90,8 +91,7 @@ class OnlineReprojection:
         self._rots = candidate_rotations()
         self._distance = camera_distance(self.skeleton)
         self._calls = _PlanesCalls(self.skeleton, self._distance) if compiled else None
-        self._principal: FloatArray | None = None
-        self.set_principal(principal_px)
+        self._take_image_size(image_size)
         self.reset()
 
     @property
@@ -99,20 +99,18 @@ class OnlineReprojection:
         """The known principal point (the image centre), or None: the hips' running mean."""
         return self._principal
 
-    def set_principal(self, principal_px: FloatArray | None) -> None:
-        """The image centre, once the image size is known (None: the hips' running mean).
-        A different one is another camera or resolution: the camera fitted so far is
-        forgotten."""
-        new = None if principal_px is None else np.array(principal_px, dtype=np.float64)
-        if new is not None and (new.shape != (2,) or not np.isfinite(new).all()):
-            raise ValueError(f"principal point must be two finite pixels, got {principal_px}")
-        old = self._principal
-        same = (old is None and new is None) or (
-            old is not None and new is not None and bool(np.array_equal(old, new))
-        )
-        if not same:
-            self._principal = new
-            self.reset()
+    def _take_image_size(self, image_size: tuple[float, float] | None) -> None:
+        self._image_size = None if image_size is None else check_image_size(image_size)
+        self._principal = image_centre(self._image_size)  # computed once, read every frame
+
+    def set_image_size(self, image_size: tuple[float, float] | None) -> None:
+        """The image's width and height in pixels (None: unknown). A different size is another
+        camera or resolution: the camera fitted so far is forgotten; the same one costs a tuple
+        comparison (a live sender may send it with every frame)."""
+        if image_size == self._image_size:
+            return
+        self._take_image_size(image_size)
+        self.reset()
 
     def reset(self) -> None:
         self._costs = np.zeros(len(self._rots))
@@ -129,7 +127,9 @@ class OnlineReprojection:
             return None
         best = int(np.argmin(self._costs))
         focal = math.exp(self._log_scale / self._scales) * self._distance
-        principal = self._hips / self._hips_seen if self._principal is None else self._principal
+        principal = self._principal
+        if principal is None:
+            principal = self._hips / self._hips_seen
         return CameraEstimate(math.radians(ELEVATIONS_DEG[best]), focal, principal, self._distance)
 
     def step(self, local: FloatArray, xy: FloatArray) -> FloatArray:

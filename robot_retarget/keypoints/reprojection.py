@@ -56,12 +56,12 @@ DEPTH_SCALE = 1.0
 the frame's image scale × their length on the reference skeleton (the performer's proportions
 are not estimated: in ``stream`` a running estimate from the longest images scored worse).
 Chosen with ALONG_VIEW_SCALE on subjects the lifting model never saw: two causal models of the
-shipped recipe trained without 13, 14 and without 02, 05 (and without the validation
-subjects), each scored on its held-out pair, and the shipped models on 02, 05, 13 (the lifted
-performer through 12 views; ``stream``: 14.33° → 13.90°, 19.98° → 19.57°, 9.14° → 8.97°;
-``convert``'s planes on the fold models' whole-clip answers and on the shipped ensemble:
-13.96° → 13.46°, 19.52° → 19.03°, 8.03° → 7.89°). A share scale of 0.5 or 2, or the cue on the
-forearms too, did worse on one of the three."""
+shipped recipe trained without 13, 14 and without 02, 05 (with the validation subjects: the
+training ignored ``--exclude-subjects`` then), each scored on its held-out pair, and the
+shipped models on 02, 05, 13 (the lifted performer through 12 views; ``stream``: 14.33° →
+13.90°, 19.98° → 19.57°, 9.14° → 8.97°; ``convert``'s planes on the fold models' whole-clip
+answers and on the shipped ensemble: 13.96° → 13.46°, 19.52° → 19.03°, 8.03° → 7.89°). A share
+scale of 0.5 or 2, or the cue on the forearms too, did worse on one of the three."""
 
 _LIMB_JOINTS, _LIMB_CHILDREN, _LIMB_KEY_STARTS, _LIMB_KEY_ENDS = (
     np.array(c, dtype=np.int64) for c in zip(*LIMB_BONES, strict=True)

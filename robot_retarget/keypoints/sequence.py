@@ -25,8 +25,8 @@ DEFAULT_MIN_CONFIDENCE = 0.3
 class KeypointSequence:
     """``xy`` (T, 17, 2) pixels (NaN where invalid), ``confidence`` (T, 17) in [0, 1],
     ``valid`` (T, 17), at ``fps``; ``source`` names the file or stream it came from;
-    ``image_size`` (width, height) in pixels where the input says (it places the camera's
-    principal point: :attr:`principal_px`)."""
+    ``image_size`` (width, height) in pixels where the input says (its centre is the camera's
+    principal point, to the few pixels a lens is off: ``stream``'s image planes use it)."""
 
     xy: FloatArray = field(repr=False)
     confidence: FloatArray = field(repr=False)
@@ -45,12 +45,6 @@ class KeypointSequence:
             raise ValueError(f"fps must be positive, got {self.fps}")
         if self.image_size is not None:
             check_image_size(self.image_size)
-
-    @property
-    def principal_px(self) -> FloatArray | None:
-        """The image centre (2,), where a camera's principal point lies (to the few pixels a
-        lens is off), or None when the image size is not known."""
-        return image_centre(self.image_size)
 
     @property
     def num_frames(self) -> int:

@@ -38,6 +38,11 @@ class VirtualCamera:
     width_px: int = 1280
     height_px: int = 720
 
+    @property
+    def image_size(self) -> tuple[float, float]:
+        """(width, height) in pixels, as a keypoint sequence or packet carries it."""
+        return (float(self.width_px), float(self.height_px))
+
     def pose(self, target: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Camera centre (3,) and world→camera rotation (3, 3) (rows: right, down, forward)."""
         a, e = self.azimuth_rad, self.elevation_rad

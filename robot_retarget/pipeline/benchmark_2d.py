@@ -46,7 +46,6 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
     from robot_retarget.hardware.safety import SafetyLayer
     from robot_retarget.hardware.types import JointCommand
     from robot_retarget.keypoints.online_reprojection import OnlineReprojection
-    from robot_retarget.keypoints.sequence import image_centre
     from robot_retarget.keypoints.synthetic import EstimatorNoise, render_keypoints
     from robot_retarget.keypoints.virtual_camera import VirtualCamera
     from robot_retarget.motion.synthetic import demo_motion
@@ -71,8 +70,6 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
         np.random.default_rng(0), EstimatorNoise(),
     )  # fmt: skip
     people = np.concatenate([np.nan_to_num(px), conf[..., None]], axis=-1)
-    size = (float(camera.width_px), float(camera.height_px))
-    known_size: tuple[float, float] | None = None
     bystander = people.copy()
     bystander[..., :2] = bystander[..., :2] * 0.4 + 20.0
     keypoint_step = load_keypoint_model(args.keypoint_model).online()
@@ -97,7 +94,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
         if int(camera_t) != frame:  # a new camera frame: decode and lift it (receiver thread)
             frame = int(camera_t)
             packet = encode_keypoints(frame, frame / CAMERA_FPS, [bystander[frame % n],
-                                      people[frame % n]], image_size=size)  # fmt: skip
+                                      people[frame % n]], image_size=camera.image_size)  # fmt: skip
             t0 = time.perf_counter()
             pkt = decode_keypoints(packet, 0.3)
             chosen = tracker.choose([(xy, v) for xy, _c, v in pkt.people])
@@ -107,9 +104,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
             t1 = time.perf_counter()
             lifted = keypoint_step.step(xy, valid)
             t2 = time.perf_counter()
-            if pkt.image_size != known_size:  # as the source does: only when it changes
-                known_size = pkt.image_size
-                planes.set_principal(image_centre(known_size))
+            planes.set_image_size(pkt.image_size)  # as the source does
             previous, current = current, planes.step(lifted, np.where(valid[:, None], xy, np.nan))
             t3 = time.perf_counter()
             arrived = t3 - t0

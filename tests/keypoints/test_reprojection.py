@@ -271,7 +271,7 @@ def test_a_known_principal_point_is_the_cameras_and_a_new_one_starts_over(
     model = load_keypoint_model()
     quats = model.run_clip(seen.xy, seen.valid, causal=True, mirror_average=True)
     centre = np.array([640.0, 360.0])
-    known, unknown = OnlineReprojection(principal_px=centre), OnlineReprojection()
+    known, unknown = OnlineReprojection(image_size=(1280.0, 720.0)), OnlineReprojection()
     for q, xy in zip(quats[: MIN_FRAMES + 3], seen.xy, strict=False):
         known.step(q, xy)
         unknown.step(q, xy)
@@ -279,9 +279,9 @@ def test_a_known_principal_point_is_the_cameras_and_a_new_one_starts_over(
     assert unknown.camera is not None
     np.testing.assert_array_equal(known.camera.principal_px, centre)
     assert not np.allclose(unknown.camera.principal_px, centre)
-    known.set_principal(centre.copy())  # the same: nothing forgotten
+    known.set_image_size((1280.0, 720.0))  # the same: nothing forgotten
     assert known.camera is not None
-    known.set_principal(np.array([320.0, 240.0]))
+    known.set_image_size((640.0, 480.0))
     assert known.camera is None
-    with pytest.raises(ValueError, match="principal point"):
-        known.set_principal(np.array([np.nan, 1.0]))
+    with pytest.raises(ValueError, match="image size"):
+        known.set_image_size((np.nan, 1.0))

@@ -26,7 +26,7 @@ import numpy as np
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, NUM_KEYPOINTS
 from robot_retarget.keypoints.lift import MIN_BODY_POINTS, standing_root
 from robot_retarget.keypoints.online_reprojection import MIN_SECONDS, OnlineReprojection
-from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, image_centre
+from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 from robot_retarget.sources.base import DEFAULT_QUEUE_FRAMES, SourceFrame
@@ -75,10 +75,8 @@ class UdpKeypointSource(UdpDatagramSource):
         self._step = model.online()
         # The image size (from --image-size, or each packet's own) puts the principal point
         # at the image centre; a packet's size overrides the one given here.
-        self._image_size = image_size
-        principal = image_centre(image_size)
         self._planes = (
-            OnlineReprojection(self._skeleton, fps=nominal_fps, principal_px=principal)
+            OnlineReprojection(self._skeleton, fps=nominal_fps, image_size=image_size)
             if image_planes
             else None
         )
@@ -126,9 +124,8 @@ class UdpKeypointSource(UdpDatagramSource):
             xy, _conf, valid = pkt.people[chosen]
         local = self._step.step(xy, valid)  # the model sees every camera frame, in time
         if self._planes is not None:  # so does the camera fit, as lift_keypoints(causal=True)
-            if pkt.image_size is not None and pkt.image_size != self._image_size:
-                self._image_size = pkt.image_size  # a new size resets the camera fitted so far
-                self._planes.set_principal(image_centre(pkt.image_size))
+            if pkt.image_size is not None:  # a new size resets the camera fitted so far
+                self._planes.set_image_size(pkt.image_size)
             local = self._planes.step(local, np.where(valid[:, None], xy, np.nan))
         if int(valid[_BODY].sum()) < MIN_BODY_POINTS:
             # Nobody (or too little of a body) in view: no frame, so the control loop holds

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.keypoints.sequence import check_image_size
 from robot_retarget.sources.keypoints.coco_jsonl import CocoPersonError, parse_coco_person
 from robot_retarget.sources.keypoints.frames import Person
 from robot_retarget.sources.wire import WIRE_VERSION, WireError
@@ -85,10 +86,12 @@ def _image_size(value: Any) -> tuple[float, float] | None:
     if value is None:
         return None
     ok = isinstance(value, list) and len(value) == 2
-    ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-    if not ok or not all(math.isfinite(v) and v > 0 for v in value):
-        raise WireError("'image_size' must be [width, height], two positive pixel counts")
-    return (float(value[0]), float(value[1]))
+    if ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        try:
+            return check_image_size((value[0], value[1]))
+        except ValueError:
+            pass
+    raise WireError("'image_size' must be [width, height], two positive pixel counts")
 
 
 def encode_keypoints(
