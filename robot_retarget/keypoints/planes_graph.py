@@ -156,9 +156,26 @@ def _into_plane(d: Vec, ray_a: Vec, ray_b: Vec, seen: ca.SX, weighted: bool) -> 
         inside = tuple(a + share * (b - a) for a, b in zip(d, inside, strict=True))
     length = sq.norm(inside)
     ok = ca.logic_and(ok, length > 1e-9)
-    return tuple(
+    turned = tuple(
         ca.if_else(ok, c / ca.fmax(length, 1e-9), a) for a, c in zip(d, inside, strict=True)
     )
+    return _image_side(turned, d, ray_a, ray_b, ok)
+
+
+def _image_side(turned: Vec, before: Vec, ray_a: Vec, ray_b: Vec, ok: ca.SX) -> Vec:
+    """reprojection._image_side of one unit direction: mirrored along the view onto the side
+    its keypoints put it, unless that turns it 90° or more from ``before``."""
+    across = sq.sub(
+        sq.scale(1.0 / ca.fmax(sq.norm(ray_b), 1e-12), ray_b),
+        sq.scale(1.0 / ca.fmax(sq.norm(ray_a), 1e-12), ray_a),
+    )
+    size = sq.norm(across)
+    ok = ca.logic_and(ok, size > 1e-12)
+    across = sq.scale(1.0 / ca.fmax(size, 1e-12), across)
+    side = sq.dot(turned, across)
+    mirrored = sq.sub(turned, sq.scale(2.0 * side, across))
+    flip = ca.logic_and(ca.logic_and(ok, side < 0.0), sq.dot(mirrored, before) > 0.0)
+    return tuple(ca.if_else(flip, m, t) for m, t in zip(mirrored, turned, strict=True))
 
 
 def _depth_from_length(d: Vec, ray_a: Vec, ray_b: Vec, expected: ca.SX, seen: ca.SX) -> Vec:

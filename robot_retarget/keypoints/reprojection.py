@@ -12,8 +12,10 @@ two end points. This module
    limb bone (upper arms, forearms, thighs, shins) by the smallest rotation that takes it
    toward its plane (:func:`plane_changes`): fully where the bone lies across the view, less
    where it points along the camera's axis, whose plane the keypoints' noise decides (the torso
-   hardly ever does; weighting it too cost 0.3–0.6° on it on subjects 02 and 13). Hands, feet
-   and toes follow their bones; the head and arms follow the torso;
+   hardly ever does; weighting it too cost 0.3–0.6° on it on subjects 02 and 13), and onto the
+   side of the view its keypoints put it (a bone points from its first keypoint toward its
+   second across the image: :func:`_image_side`). Hands, feet and toes follow their bones;
+   the head and arms follow the torso;
 3. moves the upper arms', thighs' and shins' angle to the image plane toward the one their
    image length gives (:func:`depth_from_length`: the planes fix a bone's direction across the
    image, not how far it points toward or away from the camera).
@@ -121,7 +123,8 @@ def _into_planes(
     directions: FloatArray, ray_a: FloatArray, ray_b: FloatArray, weighted: bool = True
 ) -> FloatArray:
     """Unit ``directions`` (T, 3, camera frame) turned toward the planes spanned by the rays
-    (T, 3) (weighted by how much each lies across the view); NaN rays leave them as they are."""
+    (T, 3) (weighted by how much each lies across the view), then onto the side of the view
+    their keypoints put them (:func:`_image_side`); NaN rays leave them as they are."""
     normal = quat.cross(ray_a, ray_b)
     size = np.linalg.norm(normal, axis=-1, keepdims=True)
     ok = np.isfinite(size[:, 0]) & (size[:, 0] > 1e-9)
@@ -133,7 +136,33 @@ def _into_planes(
     length = np.linalg.norm(inside, axis=-1, keepdims=True)
     ok &= length[:, 0] > 1e-9
     out: FloatArray = np.where(ok[:, None], inside / np.where(ok[:, None], length, 1.0), directions)
-    return out
+    return _image_side(out, directions, ray_a, ray_b, ok)
+
+
+def _image_side(
+    turned: FloatArray, before: FloatArray, ray_a: FloatArray, ray_b: FloatArray, ok: BoolArray
+) -> FloatArray:
+    """Unit ``turned`` directions (T, 3) that point back across the view, from the second
+    ray toward the first, mirrored along the view onto the keypoints' side: a bone from a
+    point on ray a to a point on ray b points along s_b·b̂ − s_a·â (depths s ≥ 0), so its
+    component along e = b̂ − â is positive. The model's bone is often wrong that way where
+    it points nearly along the view: its small part across the view is then the model's
+    guess, the keypoints' direction is not (the stream on every third validation clip through
+    the 12 views: right forearm 16.61° → 16.10°, the lifted performer 8.07° → 8.01°; the
+    fold models on the pairs they never saw 14.13° → 13.94° and 18.63° → 18.24°; README,
+    "Each bone on its keypoints' side"). A direction that would
+    then be turned 90° or more from the model's (``before``) stays: the turns stay under
+    90° (:func:`_turns`), and a model that far off is not corrected by a reflection."""
+    unit_a = ray_a / np.linalg.norm(ray_a, axis=-1, keepdims=True)
+    unit_b = ray_b / np.linalg.norm(ray_b, axis=-1, keepdims=True)
+    across = unit_b - unit_a
+    size = np.linalg.norm(across, axis=-1, keepdims=True)
+    ok = ok & (size[:, 0] > 1e-12)  # NaN sizes compare False
+    across = np.where(ok[:, None], across / np.where(ok[:, None], size, 1.0), 0.0)
+    side = np.sum(turned * across, axis=-1, keepdims=True)
+    mirrored = turned - 2.0 * side * across
+    flip = ok & (side[:, 0] < 0.0) & (np.sum(mirrored * before, axis=-1) > 0.0)
+    return np.asarray(np.where(flip[:, None], mirrored, turned), dtype=np.float64)
 
 
 def depth_from_length(

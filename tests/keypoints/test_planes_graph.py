@@ -92,3 +92,28 @@ def test_a_turns_quaternion_is_quaternion_from_matrix_near_a_half_turn_too() -> 
         got = np.array(fn(mat.reshape(-1))).ravel()
         np.testing.assert_allclose(got, quat.from_matrix(mat), atol=1e-12)
         assert got[0] >= 0.0
+
+
+def test_a_bone_along_the_view_is_put_on_its_keypoints_side_in_both_steps() -> None:
+    """A bone nearly along the view whose small part across it points from the wrist's
+    keypoint back toward the elbow's is mirrored onto the keypoints' side; one that would
+    have to turn 90° or more stays (numpy reference and compiled graph alike)."""
+    from robot_retarget.keypoints.planes_graph import _into_plane
+    from robot_retarget.keypoints.reprojection import _into_planes
+
+    d = ca.SX.sym("d", 3)
+    a, b = ca.SX.sym("a", 3), ca.SX.sym("b", 3)
+    out = _into_plane(tuple(d[i] for i in range(3)), tuple(a[i] for i in range(3)),
+                      tuple(b[i] for i in range(3)), ca.SX(1.0), True)  # fmt: skip
+    compiled = ca.Function("into_plane", [d, a, b], [ca.vertcat(*out)])
+    ray_a, ray_b = np.array([-10.0, 0.0, 1000.0]), np.array([10.0, 0.0, 1000.0])  # a → b: +x
+    back = np.array([-0.2, 0.0, 0.98]) / np.linalg.norm([-0.2, 0.0, 0.98])
+    reversed_across = np.array([-0.9, 0.0, 0.44]) / np.linalg.norm([-0.9, 0.0, 0.44])
+    for direction, expected in (
+        (back, back * [-1.0, 1.0, 1.0]),  # mirrored along the view: now from a toward b
+        (reversed_across, reversed_across),  # the mirror would turn it by 128°: it stays
+    ):
+        numpy = _into_planes(direction[None], ray_a[None], ray_b[None])[0]
+        np.testing.assert_allclose(numpy, expected, atol=1e-9)
+        np.testing.assert_allclose(np.array(compiled(direction, ray_a, ray_b)).ravel(), numpy,
+                                   atol=1e-12)  # fmt: skip
