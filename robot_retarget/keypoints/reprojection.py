@@ -150,9 +150,9 @@ def _image_side(
     guess, the keypoints' direction is not (the stream on every third validation clip through
     the 12 views: right forearm 16.61° → 16.10°, the lifted performer 8.07° → 8.01°; the
     fold models on the pairs they never saw 14.13° → 13.94° and 18.63° → 18.24°; README,
-    "Each bone on its keypoints' side"). A direction that would
-    then be turned 90° or more from the model's (``before``) stays: the turns stay under
-    90° (:func:`_turns`), and a model that far off is not corrected by a reflection."""
+    "Each bone on its keypoints' side"). A direction that would then be turned 90° or more
+    from the model's (``before``) stays: the turns stay under 90° (:func:`_turns`), and a
+    model that far off is not corrected by a reflection."""
     unit_a = ray_a / np.linalg.norm(ray_a, axis=-1, keepdims=True)
     unit_b = ray_b / np.linalg.norm(ray_b, axis=-1, keepdims=True)
     across = unit_b - unit_a
