@@ -165,10 +165,7 @@ def _into_plane(d: Vec, ray_a: Vec, ray_b: Vec, seen: ca.SX, weighted: bool) -> 
 def _image_side(turned: Vec, before: Vec, ray_a: Vec, ray_b: Vec, ok: ca.SX) -> Vec:
     """reprojection._image_side of one unit direction: mirrored along the view onto the side
     its keypoints put it, unless that turns it 90° or more from ``before``."""
-    across = sq.sub(
-        sq.scale(1.0 / ca.fmax(sq.norm(ray_b), 1e-12), ray_b),
-        sq.scale(1.0 / ca.fmax(sq.norm(ray_a), 1e-12), ray_a),
-    )
+    across = sq.sub(sq.unit_or_zero(ray_b), sq.unit_or_zero(ray_a))
     size = sq.norm(across)
     ok = ca.logic_and(ok, size > 1e-12)
     across = sq.scale(1.0 / ca.fmax(size, 1e-12), across)

@@ -153,9 +153,7 @@ def _image_side(
     "Each bone on its keypoints' side"). A direction that would then be turned 90° or more
     from the model's (``before``) stays: the turns stay under 90° (:func:`_turns`), and a
     model that far off is not corrected by a reflection."""
-    unit_a = ray_a / np.linalg.norm(ray_a, axis=-1, keepdims=True)
-    unit_b = ray_b / np.linalg.norm(ray_b, axis=-1, keepdims=True)
-    across = unit_b - unit_a
+    across = _unit(ray_b) - _unit(ray_a)
     size = np.linalg.norm(across, axis=-1, keepdims=True)
     ok = ok & (size[:, 0] > 1e-12)  # NaN sizes compare False
     across = np.where(ok[:, None], across / np.where(ok[:, None], size, 1.0), 0.0)

@@ -13,7 +13,8 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.camera_fit import CameraEstimate
 from robot_retarget.keypoints.demo_2d import demo_keypoints
 from robot_retarget.keypoints.online_reprojection import OnlineReprojection
-from robot_retarget.keypoints.planes_graph import _from_matrix
+from robot_retarget.keypoints.planes_graph import _from_matrix, _into_plane
+from robot_retarget.keypoints.reprojection import _into_planes
 from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.runtime.agnostic2d import load_keypoint_model
 
@@ -98,9 +99,6 @@ def test_a_bone_along_the_view_is_put_on_its_keypoints_side_in_both_steps() -> N
     """A bone nearly along the view whose small part across it points from the wrist's
     keypoint back toward the elbow's is mirrored onto the keypoints' side; one that would
     have to turn 90° or more stays (numpy reference and compiled graph alike)."""
-    from robot_retarget.keypoints.planes_graph import _into_plane
-    from robot_retarget.keypoints.reprojection import _into_planes
-
     d = ca.SX.sym("d", 3)
     a, b = ca.SX.sym("a", 3), ca.SX.sym("b", 3)
     out = _into_plane(tuple(d[i] for i in range(3)), tuple(a[i] for i in range(3)),
