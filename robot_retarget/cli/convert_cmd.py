@@ -243,7 +243,7 @@ def run(args: argparse.Namespace) -> int:
             log=partial(print, file=sys.stderr),
         )
         if report.error is not None:
-            print(f"error: {job.clip}: {report.error}", file=sys.stderr)
+            print(f"error: {clip_error(report)}", file=sys.stderr)
         reports.append(report)
     print(format_summary(reports, time.perf_counter() - t_all))
     return 1 if any(r.error for r in reports) else 0
@@ -300,7 +300,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         nonlocal done
         done += 1
         if r.error is not None:
-            print(f"error: {r.clip}: {r.error}", file=sys.stderr)
+            print(f"error: {clip_error(r)}", file=sys.stderr)
         bar(done, len(plan.todo))
 
     if not plan.todo:
@@ -317,6 +317,13 @@ def _run_batch(args: argparse.Namespace) -> int:
     return 1 if any(r.error for r in reports) else 0
 
 
+def clip_error(report: ClipReport) -> str:
+    """A failed clip's error, led by the clip's path once (most errors already name it)."""
+    error = str(report.error)
+    clip = str(report.clip)
+    return error if error.startswith((f"{clip}:", f"{clip},")) else f"{clip}: {error}"
+
+
 def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
     ok = [r for r in reports if r.error is None]
     frames = sum(r.frames for r in ok)
@@ -324,7 +331,7 @@ def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
     lines = ["", "summary:"]
     for r in reports:
         if r.error is not None:
-            lines.append(f"  FAILED {r.clip}: {r.error}")
+            lines.append(f"  FAILED {clip_error(r)}")
         else:
             lines.append(
                 f"  {r.out}: {r.frames} frames, {r.wall_s:.2f} s "
@@ -333,6 +340,9 @@ def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
                 f"{r.clipped_commands} commands ({r.clipped_joints} joint values), "
                 f"{r.fallbacks} solver fallbacks"
             )
+    if not ok:
+        lines.append(f"  total: 0 of {len(reports)} clips converted")
+        return "\n".join(lines)
     lines.append(
         f"  total: {len(ok)} of {len(reports)} clips, {frames} frames, wall time "
         f"{total_wall_s:.2f} s, {frames / max(compute, 1e-9):.0f} frames/s, limits "

@@ -78,6 +78,13 @@ def _consistent(found: dict[str, int], parents: Sequence[int]) -> bool:
     return True
 
 
+def _contradicted(mapped: dict[str, int], named: dict[str, int]) -> dict[str, int]:
+    """The canonical joints that ``mapped`` puts on a source joint whose name (``named``, a
+    naming family's lookup) says it is another canonical joint."""
+    named_as = {j: c for c, j in named.items()}
+    return {c: j for c, j in mapped.items() if named_as.get(j, c) != c}
+
+
 def _bind(family: str, found: dict[str, int], geo: TreeGeometry) -> JointMap:
     num = len(geo.parents)
     rot: dict[str, int] = {}
@@ -140,11 +147,27 @@ def map_joints(
     for (required, _, _), fam, found in ranked:
         if required == len(REQUIRED_JOINTS) and _consistent(found, geo.parents):
             return _bind(fam, found, geo)
+    layout = ""
     if family is None or family == nf.AUTOMATIC:
         auto = auto_map(geo)
-        if all(r in auto.joints for r in REQUIRED_JOINTS) and _consistent(auto.joints, geo.parents):
+        # A skeleton named after a family but missing one of its joints (a hand or a foot cut
+        # off) still has a body's layout, and the tree's rules would then shift a whole chain
+        # by a joint: such a mapping contradicts the names, and is refused. (Names that are all
+        # there but nested against the tree are not trusted: the tree decides those.)
+        named = ranked[0][2] if ranked else {}
+        incomplete = any(r not in named for r in REQUIRED_JOINTS)
+        wrong = _contradicted(auto.joints, named) if incomplete else {}
+        if (
+            not wrong
+            and all(r in auto.joints for r in REQUIRED_JOINTS)
+            and _consistent(auto.joints, geo.parents)
+        ):
             return _bind(nf.AUTOMATIC, auto.joints, geo)
         missing = tuple(r for r in REQUIRED_JOINTS if r not in auto.joints)
+        if wrong:
+            missing = ()
+            shown = ", ".join(f"{c} on {names_t[j]}" for c, j in list(wrong.items())[:3])
+            layout = f" (mapped by the tree's layout instead, it would put {shown})"
     else:
         missing = ()
     if ranked:
@@ -152,7 +175,7 @@ def map_joints(
         if not missing or (best_missing and len(best_missing) < len(missing)):
             missing = best_missing
         lacks = ", ".join(best_missing) or "nothing, but its joints are not nested as a body"
-        hint = f"; the closest naming family, {ranked[0][1]}, lacks {lacks}"
+        hint = f"; the closest naming family, {ranked[0][1]}, lacks {lacks}{layout}"
     else:
         hint = ""
     if not missing:

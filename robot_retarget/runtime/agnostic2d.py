@@ -257,7 +257,10 @@ class Agnostic2DRuntime:
         return self.weights.centered
 
     def run_features(self, features: FloatArray, *, causal: bool) -> FloatArray:
-        """Features (T, 51) → local rotations (T, 22, 4), the members' answers averaged."""
+        """Features (T, 51) → local rotations (T, 22, 4), the members' answers averaged
+        (``causal`` with a centred model: ModelLoadError, as :meth:`online`)."""
+        if causal and self.centered:
+            raise ModelLoadError(_LOOKS_AHEAD, path=self.path, model=self.name)
         answers = [_run_weights(m, features, causal=causal) for m in self.members]
         return answers[0] if len(answers) == 1 else mean_rotation(answers)
 

@@ -58,8 +58,11 @@ def tpose_direction(joint: str, rest_offset: FloatArray) -> FloatArray | None:
     if joint in TPOSE_BONE_DIRECTIONS:
         return np.array(TPOSE_BONE_DIRECTIONS[joint])
     if joint in _TOES:
+        length = float(np.linalg.norm(rest_offset))
+        if length < _MIN_BONE:  # a toe synthesised at the foot has no direction to keep
+            return None
         horizontal = float(np.hypot(rest_offset[0], rest_offset[2]))
-        return np.array([0.0, rest_offset[1], horizontal]) / np.linalg.norm(rest_offset)
+        return np.array([0.0, rest_offset[1], horizontal]) / length
     return None
 
 

@@ -90,6 +90,21 @@ def test_folder_keeps_structure_and_survives_a_bad_clip(
     assert "FAILED" in text.out
     assert "broken.bvh" in text.err
     assert "2 of 3 clips" in text.out
+    # The failed clip's path leads its error once, though the error names the file itself.
+    broken = str(src / "broken.bvh")
+    assert text.err.count(broken) == 1
+    assert f"FAILED {broken}, line 4: " in text.out
+
+
+def test_a_lone_failed_clip_reports_nothing_converted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "broken.bvh"
+    bad.write_text("HIERARCHY\nROOT Hips\n{\n")
+    assert _run(str(bad), "--out", str(tmp_path / "x.npz")) == 1
+    out = capsys.readouterr().out
+    assert "total: 0 of 1 clips converted" in out
+    assert "limits respected" not in out
 
 
 def test_existing_output_needs_force(tmp_path: Path) -> None:

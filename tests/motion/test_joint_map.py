@@ -92,3 +92,31 @@ def test_family_names_in_wrong_places_are_not_trusted(motion_fixtures: Path) -> 
     assert jm.family == nf.AUTOMATIC
     assert jm.source_names(names)["Head"] == "lwrist"
     assert jm.source_names(names)["LeftHand"] == "head"
+
+
+@pytest.mark.parametrize(
+    ("cut", "shifted"),
+    [("LeftHand", "LeftHand on LeftForeArm"), ("LeftFoot", "LeftFoot on LeftToeBase")],
+)
+def test_a_named_skeleton_missing_a_joint_is_refused_not_shifted(
+    mocap_dir: Path, cut: str, shifted: str
+) -> None:
+    """A CMU clip with one required joint cut out (its children re-parented, as an exporter
+    that drops a joint does): the tree's rules would map a chain one joint off, so the error
+    names the missing joint and what the layout would have done."""
+    clip = read_bvh(mocap_dir / "02" / "02_01.bvh", max_frames=1)
+    geo = clip_geometry(clip)
+    j = clip.names.index(cut)
+    keep = [k for k in range(clip.num_joints) if k != j]
+
+    def reparented(p: int) -> int:
+        p = geo.parents[j] if p == j else p
+        return -1 if p < 0 else keep.index(p)
+
+    parents = tuple(reparented(geo.parents[k]) for k in keep)
+    sites = tuple(reparented(p) for p in geo.end_site_parents)
+    cut_geo = TreeGeometry(parents, geo.rest_joints[keep], sites, geo.rest_end_sites)
+    with pytest.raises(JointMappingError, match=shifted) as info:
+        map_joints([clip.names[k] for k in keep], cut_geo, path="cut.bvh")
+    assert info.value.missing == (cut,)
+    assert f"lacks {cut}" in str(info.value)

@@ -73,7 +73,7 @@ def test_a_centred_model_looks_ahead_equals_torch_and_round_trips(tmp_path: Path
         assert (moved > 1e-3) == (m is rt)
     with pytest.raises(ValueError, match="looks ahead"):
         centred(x, True)
-    with pytest.raises(ValueError, match="looks ahead"):
+    with pytest.raises(ModelLoadError, match="looks ahead"):
         rt.run_features(feats, causal=True)
     with pytest.raises(ModelLoadError, match=r"looks ahead.*stream with a causal one"):
         rt.online()
