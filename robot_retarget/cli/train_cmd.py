@@ -60,6 +60,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_data_argument(parser)
     parser.add_argument("--out", required=True, help="run folder, e.g. runs/pmnet-1")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out")
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="start a new run in an --out that holds one (its checkpoints and logs are deleted "
+        "first; without --force or --resume such a folder is refused)",
+    )
     parser.add_argument("--steps", type=int, default=20000, help="total optimisation steps")
     parser.add_argument("--batch-size", type=int, default=32)
     parser.add_argument("--window", type=int, default=DEFAULT_WINDOW_FRAMES, help="frames")
@@ -163,6 +169,34 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+# What a run leaves in its folder (robot_retarget.nn.train, agnostic2d_training, train_log).
+_RUN_FILES = ("config.json", "log.csv", "best.pt", "best.npz", "last.pt", "last.npz",
+              "trainer_state.pt")  # fmt: skip
+
+
+def _claim_run_folder(args: argparse.Namespace) -> None:
+    """Before any work: --steps is positive, and --out is a folder the run may write — not one
+    that holds another run unless --resume continues it or --force replaces it."""
+    if args.steps < 1:
+        raise TrainArgumentError(f"--steps must be at least 1, got {args.steps}")
+    out = Path(args.out)
+    if not args.resume and os.environ.get("RANK", "0") == "0":  # torchrun: rank 0 decides
+        held = [n for n in _RUN_FILES if (out / n).exists()]
+        held += [p.name for p in sorted(out.glob("events.out.tfevents.*"))]
+        if held and not args.force:
+            raise TrainArgumentError(
+                f"--out {out} already holds a run ({', '.join(held)}): pass --resume to "
+                "continue it, --force to start a new one there (its files are deleted), or "
+                "name another folder"
+            )
+        for name in held:
+            (out / name).unlink()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise TrainArgumentError(f"--out {out}: cannot create the run folder ({e})") from e
+
+
 def _bar(done: int, total: int, width: int = 24) -> str:
     filled = int(width * done / max(total, 1))
     return "[" + "#" * filled + "." * (width - filled) + "]"
@@ -239,6 +273,7 @@ def run(args: argparse.Namespace) -> int:
         )
 
     command = _command_line()
+    _claim_run_folder(args)
     result = train(config, resume=args.resume, progress=show, command=command)
     if os.environ.get("RANK", "0") != "0":
         return 0  # torchrun: rank 0 exports and reports the one run
@@ -388,5 +423,6 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
             last=p.validation is not None,
         )
 
+    _claim_run_folder(args)
     print(json.dumps(train_agnostic2d(config, progress=show, command=_command_line())))
     return 0
