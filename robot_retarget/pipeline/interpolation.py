@@ -46,7 +46,11 @@ class FrameInterpolator:
         self._period_s = delay_s / adapt_periods if adapt_periods else 0.0
         self._frames: deque[SourceFrame] = deque(maxlen=max_frames)
         self._offset_s: float | None = None
-        self.late_frames = 0  # frames that arrived after their play time had passed
+        # Frames that arrived after a tick had wanted to play past them: the loop held. A
+        # frame behind the play time on arrival but in the same poll as a newer one that
+        # covers it (a sender faster than the loop) is not late: no tick missed it.
+        self.late_frames = 0
+        self._played_s = float("-inf")  # the last tick's play time
         self.restarts = 0
         self.resyncs = 0
         self.resync_s = 0.25  # a frame this far behind the play time re-anchors the clocks
@@ -62,6 +66,7 @@ class FrameInterpolator:
     def clear(self) -> None:
         self._frames.clear()
         self._offset_s = None
+        self._played_s = float("-inf")
 
     def play_time(self, now_s: float) -> float:
         if self._offset_s is None:
@@ -73,11 +78,11 @@ class FrameInterpolator:
             self.clear()
             self.restarts += 1
         transit = frame.recv_s - frame.t_s
-        if self._frames and frame.t_s < self.play_time(now_s):
+        if self._frames and frame.t_s < self._played_s:
             self.late_frames += 1
-            if frame.t_s < self.play_time(now_s) - self.resync_s:
-                self._offset_s = transit  # the sender's clock paused or slowed: follow it
-                self.resyncs += 1
+        if self._frames and frame.t_s < self.play_time(now_s) - self.resync_s:
+            self._offset_s = transit  # the sender's clock paused or slowed: follow it
+            self.resyncs += 1
         if self.adapt_periods and self._frames:
             step = frame.t_s - self._frames[-1].t_s
             self._period_s += 0.1 * (step - self._period_s)  # running average of the steps
@@ -91,6 +96,7 @@ class FrameInterpolator:
         if not self._frames:
             return None
         t = self.play_time(now_s)
+        self._played_s = t
         frames = self._frames
         newest = frames[-1]
         if t >= newest.t_s:

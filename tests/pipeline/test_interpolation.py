@@ -40,6 +40,22 @@ def test_holds_the_newest_frame_when_late() -> None:
     assert it.late_frames == 1
 
 
+def test_a_sender_faster_than_the_loop_is_not_late() -> None:
+    """120 fps frames read at a 50 Hz loop's polls arrive in bunches, most of them behind the
+    play time by then, but a newer one in the same poll covers every tick: none is late."""
+    it = FrameInterpolator(delay_s=1 / 120)
+    sent = 0
+    for tick in range(1, 100):
+        now = tick * 0.02
+        while sent / 120 <= now:
+            it.push(_frame(sent, sent / 120, now, 0.0), now)
+            sent += 1
+        s = it.sample(now)
+        assert s is not None
+        assert not s.late
+    assert it.late_frames == 0
+
+
 def test_offset_follows_the_fastest_transit() -> None:
     it = FrameInterpolator(delay_s=0.0)
     it.push(_frame(0, 0.0, 5.05, 0.0), 5.05)  # slow first packet
