@@ -120,8 +120,14 @@ def test_mediapipe_without_image_size(tmp_path: Path) -> None:
     del doc["image_width"]
     doc["frames"][1]["pose_landmarks"][0] = doc["frames"][1]["pose_landmarks"][0][:30]
     path.write_text(json.dumps(doc))
-    with pytest.raises(KeypointFormatError, match="not a keypoint input"):
-        load_keypoints(path)  # no image size: not recognised as MediaPipe at all
+    with pytest.raises(KeypointFormatError, match="'image_width' must be the image size"):
+        load_keypoints(path)  # no image size: the landmarks cannot be put in pixels
+    path.write_text(json.dumps({"people": []}))
+    with pytest.raises(KeypointFormatError, match="expected MediaPipe landmarks"):
+        load_keypoints(path)
+    path.write_text('{"keypoints": []}\n{"keypoints": []}\n')
+    with pytest.raises(KeypointFormatError, match=r"COCO-17 JSON lines .* a \.jsonl file"):
+        load_keypoints(path)
     doc["image_width"] = 1000
     path.write_text(json.dumps(doc))
     with pytest.raises(KeypointFormatError, match=r"frame 1: person 0: expected 33 landmarks"):

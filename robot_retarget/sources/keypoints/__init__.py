@@ -12,13 +12,12 @@ rule of :mod:`.person_choice`. :func:`load_keypoints` picks the reader from the 
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
 from robot_retarget.sources.keypoints.coco_jsonl import read_coco_jsonl
 from robot_retarget.sources.keypoints.errors import KeypointFormatError
-from robot_retarget.sources.keypoints.mediapipe import is_mediapipe_document, read_mediapipe_json
+from robot_retarget.sources.keypoints.mediapipe import read_mediapipe_json
 from robot_retarget.sources.keypoints.openpose import is_openpose_folder, read_openpose_folder
 
 __all__ = ["KeypointFormatError", "is_keypoint_input", "load_keypoints"]
@@ -28,29 +27,13 @@ KEYPOINT_FORMS = (
 )
 
 
-def _is_mediapipe_file(path: Path) -> bool:
-    if not (path.is_file() and path.suffix.lower() == ".json"):
-        return False
-    try:
-        with path.open(encoding="utf-8") as fh:
-            head = fh.read(4096)
-    except (OSError, UnicodeDecodeError):
-        return False
-    if '"image_width"' in head and '"frames"' in head:
-        return True
-    try:
-        return is_mediapipe_document(json.loads(path.read_text(encoding="utf-8")))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return False
-
-
 def is_keypoint_input(path: Path) -> bool:
     """True for the keypoint forms above (a folder of BVH clips is not one)."""
     if path.is_dir():
         return is_openpose_folder(path)
-    if path.suffix.lower() == ".jsonl":
-        return True
-    return _is_mediapipe_file(path)
+    # A .json is read as MediaPipe's (the one JSON form; motion files are BVH), so that a
+    # wrong one gets the reader's error, not "unsupported motion file type".
+    return path.suffix.lower() in (".jsonl", ".json")
 
 
 def load_keypoints(
@@ -61,6 +44,6 @@ def load_keypoints(
         return read_openpose_folder(path, fps=fps or 30.0, min_confidence=min_confidence)
     if path.suffix.lower() == ".jsonl":
         return read_coco_jsonl(path, fps=fps, min_confidence=min_confidence)
-    if _is_mediapipe_file(path):
+    if path.suffix.lower() == ".json":
         return read_mediapipe_json(path, fps=fps, min_confidence=min_confidence)
     raise KeypointFormatError(f"not a keypoint input; give {KEYPOINT_FORMS}", path=path)

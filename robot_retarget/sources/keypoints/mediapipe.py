@@ -40,10 +40,6 @@ _MEDIAPIPE = {
 _INDEX = np.array([_MEDIAPIPE[Coco(k).name] for k in range(NUM_KEYPOINTS)], dtype=np.int64)
 
 
-def is_mediapipe_document(doc: object) -> bool:
-    return isinstance(doc, dict) and "frames" in doc and "image_width" in doc
-
-
 def _size(doc: dict[str, Any], key: str, path: Path) -> float:
     value = doc.get(key)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
@@ -86,10 +82,16 @@ def read_mediapipe_json(
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise KeypointFormatError(f"not a JSON document ({exc})", path=path) from None
-    if not is_mediapipe_document(doc):
         raise KeypointFormatError(
-            "expected an object with 'image_width', 'image_height' and 'frames'", path=path
+            f"not a JSON document ({exc}); a .json is read as MediaPipe landmarks, and COCO-17 "
+            "JSON lines (one frame per line) are read from a .jsonl file",
+            path=path,
+        ) from None
+    if not (isinstance(doc, dict) and "frames" in doc):
+        raise KeypointFormatError(
+            "expected MediaPipe landmarks: an object with 'image_width', 'image_height' and "
+            "'frames' (a .json is read as MediaPipe's; see the README's \"Video input\")",
+            path=path,
         )
     w, h = _size(doc, "image_width", path), _size(doc, "image_height", path)
     rate = fps if fps is not None else doc.get("fps", 30.0)
