@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     traj_path = out_dir / f"demo_{args.robot}{tag}.npz"
     stream_path = out_dir / f"demo_{args.robot}{tag}_stream.npz"
     bvh_path = out_dir / f"demo_{args.robot}{tag}.bvh"
-    gif_path = out_dir / f"demo_preview{tag}.gif"
+    gif_path = out_dir / f"demo_{args.robot}{tag}_preview.gif"
     # Every output checked before any work (robot_retarget.cli.output_paths): the folder is
     # created if missing and must be writable; nothing is replaced without --force.
     outputs = [traj_path, stream_path, bvh_path] + ([] if args.no_preview else [gif_path])

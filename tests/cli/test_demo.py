@@ -33,7 +33,7 @@ def test_short_demo_passes_its_checks(tmp_path: Path, capsys: pytest.CaptureFixt
     assert traj.num_frames == 501  # 4 s at 125 Hz
     assert RobotTrajectory.read(out / "demo_op3_stream.npz").num_frames > 100
     assert (out / "demo_op3.bvh").read_text().startswith("HIERARCHY")
-    with Image.open(out / "demo_preview.gif") as im:
+    with Image.open(out / "demo_op3_preview.gif") as im:
         assert 5 <= im.n_frames <= 200
     with pytest.raises(RetargetError, match="--force"):
         demo_cmd.run(_args("--out-dir", str(out), "--seconds", "2"))
