@@ -61,6 +61,9 @@ class LoadedModel:
         return self.model.name
 
 
+_KEYPOINT = "agnostic2d"  # the shipped keypoint models' names: agnostic2d, agnostic2d_clip…
+
+
 def shipped_checkpoints(directory: Path | None = None) -> dict[str, Path]:
     """Checkpoints shipped with the package (default :data:`CHECKPOINT_DIR`), by file stem."""
     directory = CHECKPOINT_DIR if directory is None else directory
@@ -70,8 +73,11 @@ def shipped_checkpoints(directory: Path | None = None) -> dict[str, Path]:
 
 
 def available_models() -> tuple[str, ...]:
-    """Every name :func:`load_model` accepts (paths aside)."""
-    return BUILTIN_MODELS + tuple(n for n in shipped_checkpoints() if n not in BUILTIN_MODELS)
+    """Every name :func:`load_model` accepts (paths aside); the shipped 2D keypoint models
+    (``agnostic2d*``) lift keypoints for ``--keypoint-model`` and are no retargeting model."""
+    return BUILTIN_MODELS + tuple(
+        n for n in shipped_checkpoints() if n not in BUILTIN_MODELS and not n.startswith(_KEYPOINT)
+    )
 
 
 def load_model(name_or_path: str | Path = DEFAULT_MODEL, *, device: str = "cpu") -> LoadedModel:

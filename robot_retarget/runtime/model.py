@@ -235,6 +235,14 @@ def load_runtime(path: str | os.PathLike[str]) -> RuntimeModel:
             path=p,
         )
     arch = str(meta.get("architecture"))
+    if arch == "agnostic2d":
+        raise ModelLoadError(
+            "this is a 2D keypoint model: it lifts keypoints to 3D (convert a keypoint file, "
+            "stream --source udp-keypoints://…, both with --keypoint-model), it does not "
+            "retarget: give --model a retargeting model, e.g. default (runtimes: "
+            f"{', '.join(ARCHITECTURES)})",
+            path=p,
+        )
     if arch not in ARCHITECTURES:
         raise ModelLoadError(
             f"unknown architecture {arch!r} (runtimes: {', '.join(ARCHITECTURES)})", path=p

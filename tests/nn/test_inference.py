@@ -60,7 +60,9 @@ def test_checkpoint_by_path_by_run_folder_and_by_shipped_name(
     shipped = tmp_path / "shipped"
     _save_tiny(shipped / "mine.pt")
     monkeypatch.setattr(inference, "CHECKPOINT_DIR", shipped)
+    _save_tiny(shipped / "agnostic2d_clip.pt")  # a keypoint model lifts, it is no --model
     assert "mine" in inference.available_models()
+    assert "agnostic2d_clip" not in inference.available_models()
     loaded = load_model("mine")
     assert loaded.name == "mine"
     assert loaded.architecture == "pmnet"

@@ -73,6 +73,8 @@ def test_files_that_are_not_runtimes_are_refused(tmp_path: Path) -> None:
         np.savez(bad, **content)
         with pytest.raises(ModelLoadError, match=needle):
             load_runtime(bad)
+    with pytest.raises(ModelLoadError, match=r"2D keypoint model.*--keypoint-model"):
+        load_runtime_model("agnostic2d")  # the shipped keypoint model, given as --model
     (tmp_path / "text.npz").write_text("hello")
     with pytest.raises(ModelLoadError, match="not a runtime"):
         load_runtime(tmp_path / "text.npz")
