@@ -46,7 +46,12 @@ _FORMATS = (".npz", ".csv", ".json")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("input", type=Path, help="BVH file, or a folder of BVH files")
+    parser.add_argument(
+        "input",
+        type=Path,
+        help="a BVH file, a folder of BVH files, or 2D keypoints (an OpenPose JSON folder, a "
+        "MediaPipe .json, COCO-17 .jsonl)",
+    )
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
     parser.add_argument(
         "--out", type=Path, required=True, help="OUT.npz|.csv|.json (a folder for folder input)"
@@ -54,8 +59,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--format",
         choices=[f[1:] for f in _FORMATS],
-        default="npz",
-        help="file format for folder input (default npz)",
+        help="file format for folder input (default npz; a single clip's is --out's suffix)",
     )
     parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
     parser.add_argument(
@@ -163,7 +167,8 @@ def _plan(
         raise MotionFormatError("no such file or folder", path=src)
     keypoints = is_keypoint_input(src)
     folder = src.is_dir() and not keypoints
-    suffix = "." + args.format if folder else args.out.suffix.lower()
+    _check_options_fit_input(args, src, keypoints=keypoints, folder=folder)
+    suffix = "." + (args.format or "npz") if folder else args.out.suffix.lower()
     pairs = [(src, args.out)] if keypoints else output_paths(src, args.out, suffix)
     if not pairs:
         raise MotionFormatError("no .bvh files in this folder", path=src)
@@ -204,6 +209,42 @@ def _plan(
     if jobs[0].preview is not None:
         check_preview_path(jobs[0].preview, overwrite=True)  # MP4 needs ffmpeg
     return jobs
+
+
+def _check_options_fit_input(
+    args: argparse.Namespace, src: Path, *, keypoints: bool, folder: bool
+) -> None:
+    """Options that the input would ignore are refused by name, before any work."""
+    if not keypoints:
+        given = [
+            option
+            for option, used in (
+                ("--keypoint-model", args.keypoint_model is not None),
+                ("--keypoint-fps", args.keypoint_fps is not None),
+                ("--no-image-planes", not args.image_planes),
+            )
+            if used
+        ]
+        if given:
+            raise RetargetError(
+                f"{', '.join(given)}: for 2D keypoint input, and {src} is BVH motion: drop "
+                f"{'it' if len(given) == 1 else 'them'}"
+            )
+    elif args.canonical_input:
+        raise RetargetError(
+            f"--canonical-input: for BVH input read by a skeleton-aware model, and {src} is 2D "
+            "keypoints (lifted onto the canonical joints already): drop it"
+        )
+    if folder and args.out.suffix.lower() in _FORMATS:
+        raise RetargetError(
+            f"--out {args.out}: a folder of clips is written to a folder of files, not to one "
+            f"{args.out.suffix} file; name a folder (--format picks the files' format)"
+        )
+    if not folder and args.format is not None and "." + args.format != args.out.suffix.lower():
+        raise RetargetError(
+            f"--format {args.format}: for folder input; one clip is written in --out's format "
+            f"({args.out.suffix or 'no suffix'}): name --out …{'.' + args.format} instead"
+        )
 
 
 def _options(args: argparse.Namespace) -> ConvertOptions:
@@ -281,7 +322,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         "max_frames": options.max_frames,
         "lead_in": options.lead_in,
         "foot_lock": options.foot_lock,
-        "format": args.format,
+        "format": args.format or "npz",
     }
     manifest = Manifest.open(args.out, settings, fresh=args.force)
     jobs = _plan(args, lambda clip: manifest.owns(clip_key(clip, src)))

@@ -65,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not (args.speed > 0 and 0 < args.seconds <= 12.0):
         raise RetargetError("--speed must be positive and --seconds in (0, 12]")
+    if args.keypoint_model is not None and args.input != "2d":
+        raise RetargetError("--keypoint-model lifts the 2D demo's keypoints: add --input 2d")
     t_start = time.perf_counter()
     out_dir: Path = args.out_dir
     tag = "_2d" if args.input == "2d" else ""

@@ -191,6 +191,11 @@ def run(args: argparse.Namespace) -> int:
 
         parse_ports(config, args.port)  # unknown bus names, a plain PATH on several buses
         check_ports_exist(args.port)
+    elif args.port:
+        raise RetargetError(
+            f"--port: for --backend dynamixel, and --backend {args.backend} opens no serial "
+            "port: drop --port, or stream to the servos with --backend dynamixel"
+        )
     source = open_source(
         args.source,
         loop=args.loop,

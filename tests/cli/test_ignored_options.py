@@ -1,0 +1,60 @@
+"""An option the input or backend would ignore is a one-line error naming it, before any
+work, not a silent no-op (convert, stream, demo)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from robot_retarget.cli.main import main
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
+WALK = FIXTURES / "motion" / "tiny_walk.bvh"
+
+
+@pytest.mark.parametrize(
+    ("extra", "out_name", "says"),
+    [
+        (["--format", "csv"], "a.npz", "--format csv: for folder input"),
+        (["--keypoint-model", "agnostic2d"], "a.npz", "--keypoint-model: for 2D keypoint input"),
+        (["--keypoint-fps", "25", "--no-image-planes"], "a.npz",
+         "--keypoint-fps, --no-image-planes: for 2D keypoint input"),
+    ],
+)  # fmt: skip
+def test_convert_refuses_options_a_bvh_clip_ignores(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], out_name: str, says: str
+) -> None:
+    out = tmp_path / out_name
+    assert main(["convert", str(WALK), "--out", str(out), *extra]) != 0
+    assert says in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_convert_refuses_a_file_name_for_a_folder_and_canonical_input_for_keypoints(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    (folder / "a.bvh").write_bytes(WALK.read_bytes())
+    assert main(["convert", str(folder), "--out", str(tmp_path / "lib.npz")]) != 0
+    assert "a folder of clips is written to a folder" in capsys.readouterr().err
+    assert not (tmp_path / "lib.npz").exists()
+    keypoints = next((FIXTURES / "keypoints").glob("*.jsonl"))
+    assert main(["convert", str(keypoints), "--out", str(tmp_path / "k.npz"),
+                 "--canonical-input"]) != 0  # fmt: skip
+    assert "--canonical-input: for BVH input" in capsys.readouterr().err
+    # The same format named twice is no conflict.
+    assert main(["convert", str(WALK), "--out", str(tmp_path / "b.csv"), "--format", "csv"]) == 0
+
+
+def test_stream_and_demo_refuse_options_they_would_ignore(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["stream", "--backend", "sim", "--port", "/dev/ttyNOPE",
+                 "--source", f"replay:{WALK}", "--duration", "1"]) != 0  # fmt: skip
+    assert "--port: for --backend dynamixel" in capsys.readouterr().err
+    out = tmp_path / "demo"
+    assert main(["demo", "--out-dir", str(out), "--keypoint-model", "agnostic2d"]) != 0
+    assert "add --input 2d" in capsys.readouterr().err
+    assert not out.exists()
