@@ -35,3 +35,18 @@ def test_nobody_and_single_points() -> None:
     assert tr.choose([]) is None
     one_point = (np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([True, False]))
     assert tr.choose([one_point]) is None  # fewer than two visible points: no box
+
+
+def test_one_wild_point_does_not_lose_the_person() -> None:
+    """A glitch at full confidence (one wrist across the image) in a 17-point body: the
+    followed person is kept, where a plain bounding box's centre would jump past the gate."""
+    rng = np.random.default_rng(0)
+    body = np.column_stack([rng.uniform(560, 640, 17), rng.uniform(200, 500, 17)])
+    seen = np.ones(17, dtype=bool)
+    tr = PersonTracker()
+    assert tr.choose([(body, seen)]) == 0
+    glitch = body.copy()
+    glitch[9] = (1270.0, 10.0)
+    for _ in range(3):
+        assert tr.choose([(glitch, seen)]) == 0
+    assert tr.choose([(body + 5.0, seen)]) == 0

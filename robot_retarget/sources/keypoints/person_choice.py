@@ -1,11 +1,12 @@
 """Which person to follow when a pose estimator sees several.
 
-The rule: on the first frame with anyone in view, the person with the largest bounding box
-(of their visible keypoints) — usually the one nearest the camera. After that, the person whose
-box centre is nearest the followed person's last centre, if it lies within half that box's
-diagonal; if nobody does, the frame counts as nobody seen (every point missing, never another
-person's points). After ``reacquire_frames`` such frames in a row (default 15, 0.5 s at 30 fps)
-the largest person is chosen again.
+The rule: on the first frame with anyone in view, the person with the largest box (of their
+visible keypoints, the outermost tenth on each side left out) — usually the one nearest the
+camera. After that, the person whose centre (the median of their visible keypoints) is nearest
+the followed person's last centre, if it lies within half that box's diagonal; if nobody does,
+the frame counts as nobody seen (every point missing, never another person's points). After
+``reacquire_frames`` such frames in a row (default 15, 0.5 s at 30 fps) the largest person is
+chosen again.
 """
 
 from __future__ import annotations
@@ -17,14 +18,23 @@ from robot_retarget.array_types import BoolArray, FloatArray
 REACQUIRE_FRAMES = 15
 
 
+TRIM_PERCENT = 10.0
+"""The box leaves out this share of the visible points on each side, and its centre is their
+median: one wild point (an estimator's glitch reported at full confidence) moves neither, where
+it would drag a plain bounding box's centre away and the person would be dropped."""
+
+
 def _box(xy: FloatArray, valid: BoolArray) -> tuple[FloatArray, float, float] | None:
-    """Centre (2,), area and diagonal of the visible points' bounding box; None if < 2 seen."""
+    """Centre (2,), area and diagonal of the visible points' box (:data:`TRIM_PERCENT`); None if
+    fewer than 2 are seen."""
     pts = xy[valid]
     if len(pts) < 2:
         return None
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lo = np.percentile(pts, TRIM_PERCENT, axis=0)
+    hi = np.percentile(pts, 100.0 - TRIM_PERCENT, axis=0)
     size = hi - lo
-    return 0.5 * (lo + hi), float(size[0] * size[1]), float(np.hypot(size[0], size[1]))
+    centre: FloatArray = np.median(pts, axis=0)
+    return centre, float(size[0] * size[1]), float(np.hypot(size[0], size[1]))
 
 
 class PersonTracker:
