@@ -23,6 +23,7 @@ same bit for bit (all but ``frame_ms``, the measured compute time per frame).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -265,8 +266,11 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.fps is not None and not args.fps > 0:
-        raise RetargetError(f"--fps must be positive, got {args.fps}")
+    for option, value in (("--fps", args.fps), ("--keypoint-fps", args.keypoint_fps)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise RetargetError(f"{option} must be a positive number, got {value}")
+    if args.max_frames is not None and args.max_frames < 1:
+        raise RetargetError(f"--max-frames must be at least 1, got {args.max_frames}")
     if args.workers is not None or args.ray_address is not None:
         return _run_batch(args)
     jobs = _plan(args)

@@ -66,6 +66,8 @@ def latency_timer_ms(port: str, sysfs: Path = USB_SERIAL_SYSFS) -> int | None:
 def latency_advice(port: str, value_ms: int | None, sysfs: Path = USB_SERIAL_SYSFS) -> str:
     """What to do about the latency timer of ``port``."""
     if value_ms is None:
+        if not Path(port).exists():
+            return f"{port}: no such device (is the adapter plugged in? `doctor` lists ports)"
         return f"{port}: no FTDI latency timer (not an FTDI/U2D2 adapter): nothing to set"
     if value_ms <= 1:
         return f"{port}: latency timer {value_ms} ms: good"

@@ -41,6 +41,7 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.normalize import normalize_sequences
 from robot_retarget.keypoints.synthetic import CameraRange, EstimatorNoise, render_keypoints
 from robot_retarget.keypoints.virtual_camera import VirtualCamera, heading_quat
+from robot_retarget.nn.checkpoint import unreadable_reason
 from robot_retarget.nn.dataset import (
     Augmentation,
     Clip,
@@ -361,7 +362,9 @@ def load_keypoint_checkpoint(path: str | Path) -> tuple[Agnostic2D, dict[str, An
     except FileNotFoundError:
         raise ModelLoadError("no such keypoint checkpoint", path=source) from None
     except Exception as exc:  # torch raises many types for foreign files
-        raise ModelLoadError(f"not a readable checkpoint ({exc})", path=source) from exc
+        raise ModelLoadError(
+            f"not a readable checkpoint ({unreadable_reason(exc)})", path=source
+        ) from exc
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise ModelLoadError(f"not a {CHECKPOINT_FORMAT} checkpoint", path=source)
     config = dict(payload["config"])

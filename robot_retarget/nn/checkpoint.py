@@ -82,6 +82,15 @@ def save_checkpoint(
     return target
 
 
+def unreadable_reason(exc: BaseException) -> str:
+    """torch.load's failure in one short line (its messages run to paragraphs)."""
+    lines = str(exc).strip().splitlines()
+    first = lines[0] if lines else ""
+    if len(first) > 120:
+        first = first[:117] + "…"
+    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+
+
 def load_checkpoint(path: str | Path, *, expected_data_hash: str | None = None) -> LoadedCheckpoint:
     """Rebuild a model from ``path``; raises ModelLoadError saying what is wrong with the file."""
     source = Path(path)
@@ -93,8 +102,8 @@ def load_checkpoint(path: str | Path, *, expected_data_hash: str | None = None) 
         payload = torch.load(source, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for foreign or damaged files
         raise ModelLoadError(
-            f"not a readable checkpoint ({type(exc).__name__}: {exc}); was it written by "
-            "robot-retarget's save_checkpoint and copied completely?",
+            f"not a readable checkpoint ({unreadable_reason(exc)}); was it written by "
+            "robot-retarget's train (a .pt file) and copied completely?",
             path=source,
         ) from exc
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:

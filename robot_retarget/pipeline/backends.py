@@ -27,13 +27,18 @@ def parse_ports(config: RobotConfig, ports: Sequence[str]) -> dict[str, str]:
                 raise HardwareError(
                     f"--port {item}: robot {config.name} has no bus {bus!r}; buses: {names}"
                 )
-            out[bus] = path
         elif len(names) == 1:
-            out[names[0]] = item
+            bus, path = names[0], item
         else:
             raise HardwareError(
                 f"robot {config.name} has {len(names)} buses {names}: give --port BUS=PATH"
             )
+        if bus in out:
+            raise HardwareError(
+                f"--port {item}: bus {bus!r} was given a port already ({out[bus]}); one --port "
+                "per bus"
+            )
+        out[bus] = path
     return out
 
 

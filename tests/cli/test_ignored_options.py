@@ -58,3 +58,30 @@ def test_stream_and_demo_refuse_options_they_would_ignore(
     assert main(["demo", "--out-dir", str(out), "--keypoint-model", "agnostic2d"]) != 0
     assert "add --input 2d" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        (["--max-frames", "0"], "--max-frames must be at least 1, got 0"),
+        (["--fps", "inf"], "--fps must be a positive number, got inf"),
+        (["--keypoint-fps", "nan"], "--keypoint-fps must be a positive number, got nan"),
+    ],
+)
+def test_convert_refuses_bad_numbers_before_any_clip(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], says: str
+) -> None:
+    assert main(["convert", str(WALK), "--out", str(tmp_path / "a.npz"), *extra]) != 0
+    err = capsys.readouterr()
+    assert says in err.err
+    assert "summary" not in err.out  # refused before the clips, not per clip
+
+
+def test_exporting_a_file_that_is_no_checkpoint_is_one_short_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["export", str(WALK), "--out", str(tmp_path / "m.npz")]) != 0
+    err = capsys.readouterr().err.strip()
+    assert "not a readable checkpoint" in err
+    assert "\n" not in err
+    assert len(err) < 400

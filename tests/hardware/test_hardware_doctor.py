@@ -25,7 +25,13 @@ def test_latency_timer_read_and_advice(tmp_path: Path) -> None:
     assert "udev" in advice
     assert "good" in doctor.latency_advice("/dev/ttyUSB0", 1, tmp_path)
     assert doctor.latency_timer_ms("/dev/ttyACM0", tmp_path) is None
-    assert "not an FTDI" in doctor.latency_advice("/dev/ttyACM0", None, tmp_path)
+    acm = tmp_path / "ttyACM0"  # a serial device that is there, without FTDI's timer
+    acm.write_text("")
+    assert "not an FTDI" in doctor.latency_advice(str(acm), None, tmp_path)
+    # A port that is not there is named as such, not as "not an FTDI adapter".
+    gone = doctor.latency_advice(str(tmp_path / "ttyUSB9"), None, tmp_path)
+    assert "no such device" in gone
+    assert "FTDI" not in gone
 
 
 def test_check_bus_finds_missing_unexpected_and_mismatched(

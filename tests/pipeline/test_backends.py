@@ -21,6 +21,11 @@ def test_ports_for_one_and_two_buses(op3: RobotConfig) -> None:
     )
     with pytest.raises(HardwareError, match="BUS=PATH"):
         parse_ports(two, ["/dev/ttyX"])
+    assert parse_ports(two, ["main=/dev/a", "aux=/dev/b"]) == {"main": "/dev/a", "aux": "/dev/b"}
+    with pytest.raises(HardwareError, match="was given a port already"):
+        parse_ports(two, ["aux=/dev/a", "aux=/dev/b"])  # the second would silently win
+    with pytest.raises(HardwareError, match="was given a port already"):
+        parse_ports(op3, ["/dev/a", "main=/dev/b"])
 
 
 def test_open_backend_kinds(op3: RobotConfig) -> None:
