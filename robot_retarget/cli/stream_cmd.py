@@ -281,6 +281,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"modes: {modes or 'none (no input arrived)'}")
     if result.interrupted:
         print("stopped by Ctrl-C: torque off")
+    if result.step.frames == 0 and not result.interrupted:
+        print(
+            f"no input arrived from {source.describe()}: nothing was retargeted or sent (is the "
+            "sender running, and sending to this address and port?)",
+            file=sys.stderr,
+        )
+        return 1
     if args.record is not None:
         _save_record(args.record, result.log, config.joint_names, rate, force=args.force)
     return 0

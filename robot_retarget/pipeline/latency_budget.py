@@ -74,6 +74,8 @@ class LatencyBudget:
 
     def report(self) -> str:
         """A table, one line per stage, for the end of ``stream``."""
+        if not self.frames:
+            return "latency budget per input frame: no input frame arrived"
         lines = [f"latency budget per input frame ({self.frames} frames): median / p99 ms"]
         for stage in STAGES:
             median, p99 = self.percentiles_ms(stage)

@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -31,8 +32,13 @@ class StatsSnapshot:
     overruns: int
 
     def line(self) -> str:
+        latency = (
+            "latency: no input yet"
+            if math.isnan(self.latency_median_ms)
+            else f"latency median {self.latency_median_ms:.2f} ms p99 {self.latency_p99_ms:.2f} ms"
+        )
         return (
-            f"latency median {self.latency_median_ms:.2f} ms p99 {self.latency_p99_ms:.2f} ms | "
+            f"{latency} | "
             f"jitter median {self.jitter_median_ms:.2f} ms p99 {self.jitter_p99_ms:.2f} ms | "
             f"late frames {self.late_frames} (held ticks {self.late_ticks}) | "
             f"dropped {self.dropped_frames} | overruns {self.overruns} | "

@@ -57,6 +57,23 @@ def test_replay_into_the_simulator(capsys: pytest.CaptureFixture[str], tmp_path:
     assert "streaming replay" in out.err
 
 
+def test_a_stream_that_never_gets_input_says_so_and_fails(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # a port nobody sends to (freed for the stream)
+    record = tmp_path / "none.csv"
+    args = _args("--robot", "op3", "--source", f"udp://127.0.0.1:{port}", "--backend", "sim",
+                 "--duration", "0.5", "--record", str(record))  # fmt: skip
+    assert stream_cmd.run(args) == 1
+    out = capsys.readouterr()
+    assert "nan" not in out.out
+    assert "no input frame arrived" in out.out
+    assert "no input arrived from udp://" in out.err
+    assert not record.exists()  # nothing streamed, nothing recorded
+
+
 @pytest.mark.parametrize(
     ("source", "match"),
     [("udp://0.0.0.0:9750", "allow-remote"), ("tcp-bvh://192.168.3.3:7001", "allow-remote"),
