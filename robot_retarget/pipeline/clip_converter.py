@@ -120,6 +120,11 @@ class ClipConverter:
             foot_lock=options.foot_lock,
         )
         self.native_model = None if options.canonical_input else _skeleton_aware(self.model)
+        if options.canonical_input and getattr(self.model, "architecture", None) != "san":
+            raise RetargetError(
+                f"--canonical-input: for a skeleton-aware model (a san run), and model "
+                f"{self.model.name} reads the canonical joints always: drop it"
+            )
 
     def convert(
         self,

@@ -85,3 +85,12 @@ def test_exporting_a_file_that_is_no_checkpoint_is_one_short_line(
     assert "not a readable checkpoint" in err
     assert "\n" not in err
     assert len(err) < 400
+
+
+def test_canonical_input_needs_a_skeleton_aware_model(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["convert", str(WALK), "--out", str(tmp_path / "a.npz"),
+                 "--canonical-input"]) != 0  # fmt: skip
+    assert "--canonical-input: for a skeleton-aware model" in capsys.readouterr().err
+    assert not (tmp_path / "a.npz").exists()
