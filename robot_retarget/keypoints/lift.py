@@ -5,6 +5,9 @@ room is not recovered, so the root stays over the origin at the reference skelet
 hip height (the robot steps in place; its pose and heading follow the performer). Its heading
 is relative to the camera: a performer facing the camera faces the robot's forward.
 
+Points no body could have produced (an estimator's glitch: robot_retarget.keypoints.
+glitch_gate) are marked missing first, as ``stream`` does frame by frame, and counted.
+
 A frame in which fewer than :data:`MIN_BODY_POINTS` of the 12 body points (shoulders to
 ankles) are seen — nobody followed in view, or an occluded body — gets no pose of its own: the
 last seen frame's pose is held (the first seen one before it), and the count is reported
@@ -13,7 +16,7 @@ last seen frame's pose is held (the first seen one before it), and the count is 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +25,7 @@ from robot_retarget.array_types import BoolArray
 from robot_retarget.errors import MotionFormatError
 from robot_retarget.keypoints.camera_fit import CameraEstimate
 from robot_retarget.keypoints.coco17 import BODY_JOINTS
+from robot_retarget.keypoints.glitch_gate import gate_keypoints
 from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime
@@ -53,6 +57,7 @@ class LiftedKeypoints:
     frames_held: int  # frames without enough body points: the last seen pose held
     missing_fraction: float  # share of all points marked missing
     camera: CameraEstimate | None  # fitted for the image's planes (None: off, or no fit)
+    refused_points: int = 0  # points the glitch gate marked missing
 
 
 def lift_keypoints(
@@ -71,10 +76,21 @@ def lift_keypoints(
     return _lift(sequence, model, causal=causal, image_planes=image_planes)[0]
 
 
+def without_glitches(sequence: KeypointSequence) -> tuple[KeypointSequence, int]:
+    """``sequence`` with the glitch gate's refused points marked missing, and their count."""
+    valid, refused = gate_keypoints(sequence.xy, sequence.valid, sequence.fps)
+    if not refused:
+        return sequence, 0
+    xy = np.where(valid[..., None], sequence.xy, np.nan)
+    return replace(sequence, xy=xy, valid=valid), refused
+
+
 def _lift(
     sequence: KeypointSequence, model: Agnostic2DRuntime, *, causal: bool, image_planes: bool
-) -> tuple[HumanMotion, CameraEstimate | None]:
-    """:func:`lift_keypoints` and the camera the image's planes used (the last one, causal)."""
+) -> tuple[HumanMotion, CameraEstimate | None, int]:
+    """:func:`lift_keypoints`, the camera the image's planes used (the last one, causal) and
+    the number of points the glitch gate refused."""
+    sequence, refused = without_glitches(sequence)
     skeleton = default_canonical_skeleton()
     # Averaged with the mirrored image's answer, as the live step does (Agnostic2DRuntime.online).
     quats = model.run_clip(sequence.xy, sequence.valid, causal=causal, mirror_average=True)
@@ -103,7 +119,7 @@ def _lift(
     last = np.maximum.accumulate(np.where(seen, np.arange(len(seen)), -1))
     last[last < 0] = int(np.argmax(seen))
     lifted = HumanMotion(skeleton, quats[last], root, sequence.fps, source_path=sequence.source)
-    return lifted, camera
+    return lifted, camera, refused
 
 
 def load_keypoint_motion(
@@ -126,7 +142,9 @@ def load_keypoint_motion(
             seq.xy[:max_frames], seq.confidence[:max_frames], seq.valid[:max_frames], seq.fps,
             seq.source,
         )  # fmt: skip
-    motion, camera = _lift(
+    motion, camera, refused = _lift(
         seq, load_keypoint_model(model, whole_clip=True), causal=False, image_planes=image_planes
     )
-    return LiftedKeypoints(motion, int((~body_seen(seq)).sum()), seq.missing_fraction, camera)
+    return LiftedKeypoints(
+        motion, int((~body_seen(seq)).sum()), seq.missing_fraction, camera, refused
+    )

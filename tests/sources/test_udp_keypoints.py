@@ -126,10 +126,12 @@ def test_the_stream_lifts_as_the_causal_clip_lifting_does() -> None:
         lifted = lift_keypoints(same, model, causal=True, image_planes=planes)
         np.testing.assert_allclose(np.stack(frames), lifted.local_quats, atol=2e-6)
         # stream prints the camera the planes fitted (or that they were off).
-        (line,) = src.report_lines()
+        # stream prints the glitch gate's count and the camera (or that the planes were off).
+        gate, line = src.report_lines()
+        assert gate.startswith("glitch gate: 0 point(s)")
         assert ("camera estimated at" in line) if planes else ("off" in line)
     fresh = UdpKeypointSource(model, "127.0.0.1", 0)
-    assert "no camera fitted" in fresh.report_lines()[0]
+    assert "no camera fitted" in fresh.report_lines()[1]
 
 
 def test_a_known_image_size_puts_the_principal_point_at_the_image_centre() -> None:
@@ -160,13 +162,13 @@ def test_a_known_image_size_puts_the_principal_point_at_the_image_centre() -> No
             assert frame is not None
             frames.append(frame.local_quats)
         np.testing.assert_allclose(np.stack(frames), lifted, atol=2e-6)
-        (line,) = src.report_lines()
+        _gate, line = src.report_lines()
         assert f"principal point at the image centre ({size[0] / 2:.0f}, {size[1] / 2:.0f})" in line
     hips = UdpKeypointSource(model, "127.0.0.1", 0)
     for t in range(10):
         person = np.concatenate([np.nan_to_num(seq.xy[t]), seq.confidence[t][:, None]], 1)
         hips.handle_packet(encode_keypoints(t + 1, t / 30.0, [person]), 0.0)
-    assert "mean hip position (no image size: pass --image-size" in hips.report_lines()[0]
+    assert "mean hip position (no image size: pass --image-size" in hips.report_lines()[1]
 
 
 def test_image_sizes_in_packets_are_checked() -> None:
@@ -179,3 +181,31 @@ def test_image_sizes_in_packets_are_checked() -> None:
         obj["image_size"] = bad
         with pytest.raises(WireError, match="'image_size' must be"):
             decode_keypoints(json.dumps(obj).encode(), 0.3)
+
+
+def test_a_glitched_wrist_is_gated_in_the_stream_as_in_the_clip_lifting() -> None:
+    """One wrist thrown across the image every half second: the stream's gate marks each
+    missing (and says how many), and the stream still lifts as the causal clip lifting."""
+    from robot_retarget.keypoints.demo_2d import demo_keypoints
+    from robot_retarget.keypoints.lift import lift_keypoints
+    from robot_retarget.motion.synthetic import demo_motion
+    from robot_retarget.runtime.agnostic2d import load_keypoint_model
+
+    model = load_keypoint_model()
+    seq = demo_keypoints(demo_motion(fps=30.0).frames(0, 90))
+    xy, valid = seq.xy.copy(), seq.valid.copy()
+    glitches = range(30, 90, 15)
+    xy[list(glitches), 9] = (100.0, 700.0)
+    valid[list(glitches), 9] = True
+    seq = dataclasses.replace(seq, xy=xy, valid=valid)
+    src = UdpKeypointSource(model, "127.0.0.1", 0, image_size=seq.image_size)
+    frames = []
+    for t in range(seq.num_frames):
+        person = np.concatenate([np.nan_to_num(seq.xy[t]), seq.confidence[t][:, None]], 1)
+        person[valid[t], 2] = np.maximum(person[valid[t], 2], 0.9)
+        frame = src.handle_packet(encode_keypoints(t + 1, t / 30.0, [person]), 0.0)
+        assert frame is not None
+        frames.append(frame.local_quats)
+    assert src.report_lines()[0].startswith(f"glitch gate: {len(glitches)} point(s)")
+    lifted = lift_keypoints(seq, model, causal=True).local_quats
+    np.testing.assert_allclose(np.stack(frames), lifted, atol=2e-6)

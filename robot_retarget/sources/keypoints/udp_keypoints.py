@@ -6,7 +6,8 @@ unless ``allow_remote``; a ``token``, when set, must be in every packet; sequenc
 timestamps checked by SequenceFilter; a receiver thread decodes into a bounded queue and
 nothing a sender does can raise in, or stall, the control loop. Each accepted packet's people
 go through the person rule (robot_retarget.sources.keypoints.person_choice), the followed
-person's points through the causal keypoint model (Agnostic2DStep) and, unless
+person's points through the glitch gate (robot_retarget.keypoints.glitch_gate) and the causal
+keypoint model (Agnostic2DStep) and, unless
 ``image_planes=False``, the image's planes with the camera fitted on the frames so far
 (robot_retarget.keypoints.online_reprojection); the frame delivered is the model's 22 canonical
 rotations on the reference skeleton, the root held at its standing height
@@ -24,6 +25,7 @@ from collections.abc import Callable
 import numpy as np
 
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, NUM_KEYPOINTS
+from robot_retarget.keypoints.glitch_gate import KeypointGate
 from robot_retarget.keypoints.lift import MIN_BODY_POINTS, standing_root
 from robot_retarget.keypoints.online_reprojection import MIN_SECONDS, OnlineReprojection
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE
@@ -72,6 +74,7 @@ class UdpKeypointSource(UdpDatagramSource):
         self.min_confidence = min_confidence
         self._root = standing_root(self._skeleton)
         self._tracker = PersonTracker()
+        self._gate = KeypointGate(nominal_fps)
         self._step = model.online()
         # The image size (from --image-size, or each packet's own) puts the principal point
         # at the image centre; a packet's size overrides the one given here.
@@ -82,7 +85,14 @@ class UdpKeypointSource(UdpDatagramSource):
         )
 
     def report_lines(self) -> tuple[str, ...]:
-        """The camera the image's planes fitted (stream prints it at the end)."""
+        """The glitch gate's count and the camera the image's planes fitted (stream prints
+        them at the end)."""
+        gate = (
+            f"glitch gate: {self._gate.refused} point(s) no body could have made marked missing",
+        )
+        return gate + self._camera_lines()
+
+    def _camera_lines(self) -> tuple[str, ...]:
         if self._planes is None:
             return ("image planes: off (--no-image-planes)",)
         camera = self._planes.camera
@@ -122,6 +132,7 @@ class UdpKeypointSource(UdpDatagramSource):
             valid = np.zeros(NUM_KEYPOINTS, dtype=bool)
         else:
             xy, _conf, valid = pkt.people[chosen]
+            valid = self._gate.step(xy, valid, pkt.t_s)  # an estimator's glitch: missing
         local = self._step.step(xy, valid)  # the model sees every camera frame, in time
         if self._planes is not None:  # so does the camera fit, as lift_keypoints(causal=True)
             if pkt.image_size is not None:  # a new size resets the camera fitted so far

@@ -1,0 +1,80 @@
+"""The glitch gate: points no body could have made are marked missing before the lifting
+(robot_retarget.keypoints.glitch_gate), and a clean view loses none."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.keypoints import lift
+from robot_retarget.keypoints.coco17 import Coco
+from robot_retarget.keypoints.demo_2d import demo_keypoints
+from robot_retarget.keypoints.glitch_gate import REANCHOR_S, KeypointGate, gate_keypoints
+from robot_retarget.keypoints.sequence import KeypointSequence
+from robot_retarget.motion.synthetic import demo_motion
+from robot_retarget.runtime.agnostic2d import load_keypoint_model
+
+GLITCH_FRAMES = range(30, 361, 15)  # one frame every half second after the first second
+
+
+def _demo() -> KeypointSequence:
+    return demo_keypoints(demo_motion(fps=30.0))  # 12 s, 1280 × 720, estimator-like noise
+
+
+def _glitched(seq: KeypointSequence, where: tuple[float, float]) -> KeypointSequence:
+    xy, valid = seq.xy.copy(), seq.valid.copy()
+    for t in GLITCH_FRAMES:
+        xy[t, Coco.left_wrist] = where
+        valid[t, Coco.left_wrist] = True
+    return dataclasses.replace(seq, xy=xy, valid=valid)
+
+
+def test_a_clean_view_loses_no_point() -> None:
+    seq = _demo()
+    valid, refused = gate_keypoints(seq.xy, seq.valid, seq.fps)
+    assert refused == 0
+    np.testing.assert_array_equal(valid, seq.valid)
+
+
+def test_a_wrist_thrown_across_the_image_is_missing_for_its_frames_only() -> None:
+    seq = _demo()
+    for where in ((100.0, 700.0), (1e7, -1e7)):
+        bad = _glitched(seq, where)
+        valid, refused = gate_keypoints(bad.xy, bad.valid, bad.fps)
+        assert refused == len(GLITCH_FRAMES)
+        expected = seq.valid.copy()
+        expected[list(GLITCH_FRAMES), Coco.left_wrist] = False
+        np.testing.assert_array_equal(valid, expected)
+
+
+def test_a_point_that_stays_where_it_jumped_is_taken_after_a_while() -> None:
+    """The speed test refuses a jump, then takes the point where it now is once it has stayed
+    there REANCHOR_S (an occlusion that ended elsewhere); the nose has no bone test."""
+    seq = _demo()
+    gate = KeypointGate(seq.fps)
+    jump = 90
+    refused_at = []
+    for t in range(150):
+        xy = seq.xy[t].copy()
+        if t >= jump:  # far enough that no speed reaches it before REANCHOR_S, then stays
+            size = gate.scale.pixels
+            assert size is not None
+            xy[Coco.nose] += (15.0 * size, 0.0)
+        ok = gate.step(xy, seq.valid[t], t / seq.fps)
+        if not ok[Coco.nose] and seq.valid[t, Coco.nose]:
+            refused_at.append(t)
+    assert refused_at[0] == jump
+    assert len(refused_at) == round(REANCHOR_S * seq.fps)
+    assert refused_at == list(range(jump, jump + len(refused_at)))
+
+
+def test_the_lifted_pose_barely_notices_a_glitch() -> None:
+    """The causal lifting of the demo view with a wrist thrown across the image every half
+    second stays within 1° of the clean lifting on average (6° without the gate)."""
+    seq = _demo()
+    model = load_keypoint_model(None, whole_clip=False)
+    clean = lift.lift_keypoints(seq, model, causal=True).local_quats
+    gated = lift.lift_keypoints(_glitched(seq, (100.0, 700.0)), model, causal=True).local_quats
+    assert float(np.degrees(quat.angle_between(clean, gated)).mean()) < 1.0
