@@ -25,7 +25,6 @@ marked. The model sees a marked point as missing, as it was trained to (dropouts
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 
@@ -46,8 +45,6 @@ _SEGMENTS: tuple[tuple[Coco, Coco, float], ...] = (
     (Coco.left_knee, Coco.left_ankle, 0.8),
     (Coco.right_knee, Coco.right_ankle, 0.8),
 )
-_LIMBS = _SEGMENTS[2:]  # shoulder → elbow before elbow → wrist: root outward
-_TRUNK = (Coco.left_shoulder, Coco.right_shoulder, Coco.left_hip, Coco.right_hip)
 
 SLACK = 2.5
 """A limb bone may look this many times its usual share of the body before its far end is
@@ -69,42 +66,52 @@ SCALE_WINDOW_S = 2.0
 person seen at full size recently, not shrunk by a bend or a turn."""
 
 
+_A = np.array([a for a, _b, _s in _SEGMENTS])
+_B = np.array([b for _a, b, _s in _SEGMENTS])
+_SHARE = np.array([share for _a, _b, share in _SEGMENTS])
+_UPPER = np.array([2, 3, 6, 7])  # shoulder → elbow, hip → knee: their far ends first
+_LOWER = np.array([4, 5, 8, 9])  # elbow → wrist, knee → ankle: unless the near end went
+_SHOULDERS = np.array([Coco.left_shoulder, Coco.right_shoulder])
+_HIPS = np.array([Coco.left_hip, Coco.right_hip])
+
+
 class BodyScale:
     """The person's size in the image (torso lengths in pixels), from the frames so far."""
 
     def __init__(self, fps: float) -> None:
-        self._frames: deque[float] = deque(maxlen=max(1, round(SCALE_WINDOW_S * fps)))
+        self._window = np.zeros(max(1, round(SCALE_WINDOW_S * fps)))
         self._settled = max(1, round(SPEED_AFTER_S * fps))
+        self.reset()
 
     def reset(self) -> None:
-        self._frames.clear()
+        self._count = 0  # estimates so far (the window holds the last len(window))
+        self._pixels: float | None = None
 
-    def add(self, xy: FloatArray, valid: BoolArray) -> None:
-        """One frame's estimate: the median over its visible segments and the torso of length
-        / usual share (a glitch moves one or two of eleven: not the median)."""
-        sizes = [
-            float(np.linalg.norm(xy[a] - xy[b])) / share
-            for a, b, share in _SEGMENTS
-            if valid[a] and valid[b]
-        ]
-        if valid[list(_TRUNK)].all():
-            shoulders = 0.5 * (xy[Coco.left_shoulder] + xy[Coco.right_shoulder])
-            hips = 0.5 * (xy[Coco.left_hip] + xy[Coco.right_hip])
-            sizes.append(float(np.linalg.norm(shoulders - hips)))
-        if len(sizes) >= 3:
-            self._frames.append(float(np.median(sizes)))
+    def add(self, lengths: FloatArray, seen: BoolArray, torso: float | None) -> None:
+        """One frame's estimate from its segments' ``lengths`` (those ``seen``) and its torso
+        length: the median of length / usual share (a glitch moves one or two of eleven: not
+        the median)."""
+        sizes = lengths[seen] / _SHARE[seen]
+        if torso is not None:
+            sizes = np.append(sizes, torso)
+        if len(sizes) < 3:
+            return
+        self._window[self._count % len(self._window)] = float(np.median(sizes))
+        self._count += 1
+        n = min(self._count, len(self._window))
+        k = int(0.9 * (n - 1))
+        self._pixels = float(np.partition(self._window[:n], k)[k])
 
     @property
     def settled(self) -> bool:
-        """Whether the body has been seen for :data:`SPEED_AFTER_S` (the window's frames)."""
-        return len(self._frames) >= self._settled
+        """Whether the body has been seen for :data:`SPEED_AFTER_S`."""
+        return self._count >= self._settled
 
     @property
     def pixels(self) -> float | None:
-        """The body size in pixels, or None before any frame showed enough of it."""
-        if not self._frames:
-            return None
-        return float(np.percentile(np.fromiter(self._frames, dtype=np.float64), 90))
+        """The body size in pixels (the 90th-percentile-ranked estimate of the window), or None
+        before any frame showed enough of it."""
+        return self._pixels
 
 
 class KeypointGate:
@@ -123,30 +130,39 @@ class KeypointGate:
         self._refused_since = np.full(NUM_KEYPOINTS, math.inf)
 
     def step(self, xy: FloatArray, valid: BoolArray, t_s: float) -> BoolArray:
-        p = np.asarray(xy, dtype=np.float64)
+        p = np.where(valid[:, None], np.asarray(xy, dtype=np.float64), 0.0)
         ok = np.array(valid, dtype=bool)
+        d = p[_A] - p[_B]
+        lengths = np.sqrt((d * d).sum(axis=1))
+        seen = ok[_A] & ok[_B]
         size = self.scale.pixels
         if size is not None:
-            seen_before = np.isfinite(self._last[:, 0])
-            dt = np.maximum(t_s - self._last_t, 0.0)
-            moved = np.linalg.norm(np.where(ok[:, None], p, 0.0) - self._last, axis=-1)
-            too_fast = ok & seen_before & (moved > (MAX_SPEED * dt + MARGIN) * size)
-            too_fast &= self.scale.settled
-            waited = t_s - self._refused_since >= REANCHOR_S - 1e-9
-            refuse = too_fast & ~waited
-            for a, b, share in _LIMBS:
-                long = float(np.linalg.norm(p[b] - p[a])) > SLACK * share * size
-                if ok[a] and ok[b] and not refuse[a] and long:
-                    refuse[b] = True
-            first = refuse & ~np.isfinite(self._refused_since)
-            self._refused_since[first] = t_s
-            self.refused += int(refuse.sum())
-            ok &= ~refuse
-        kept = ok
-        self._last[kept] = p[kept]
-        self._last_t[kept] = t_s
-        self._refused_since[kept] = math.inf
-        self.scale.add(p, ok)
+            refuse = np.zeros(NUM_KEYPOINTS, dtype=bool)
+            if self.scale.settled:
+                step = p - self._last
+                moved = np.sqrt((step * step).sum(axis=1))  # NaN where never accepted: False
+                allowed = (MAX_SPEED * (t_s - self._last_t) + MARGIN) * size
+                waited = t_s - self._refused_since >= REANCHOR_S - 1e-9
+                refuse = ok & (moved > allowed) & ~waited
+            long = seen & (lengths > SLACK * _SHARE * size)
+            upper = long[_UPPER]
+            refuse[_B[_UPPER][upper]] = True
+            lower = long[_LOWER] & ~refuse[_A[_LOWER]]
+            refuse[_B[_LOWER][lower]] = True
+            if refuse.any():
+                first = refuse & ~np.isfinite(self._refused_since)
+                self._refused_since[first] = t_s
+                self.refused += int(refuse.sum())
+                ok &= ~refuse
+                seen = ok[_A] & ok[_B]
+        self._last[ok] = p[ok]
+        self._last_t[ok] = t_s
+        self._refused_since[ok] = math.inf
+        torso = None
+        if ok[_SHOULDERS].all() and ok[_HIPS].all():
+            mid = 0.5 * (p[_SHOULDERS].sum(axis=0) - p[_HIPS].sum(axis=0))
+            torso = float(np.sqrt((mid * mid).sum()))
+        self.scale.add(lengths, seen, torso)
         return ok
 
 

@@ -3,13 +3,13 @@
 Input: the built-in demo clip seen by a 30 fps virtual camera (elevation 15°, 4 m, 1000 px)
 with estimator-like noise, a second, smaller person beside the performer. Per camera frame
 (as the receiver thread does): ``decode`` (a COCO-17 JSON packet with two people → checked
-points, the person rule), ``keypoint model`` (the causal keypoint model's step: features,
-encoders, head → 22 canonical rotations) and ``image planes`` (those rotations turned into the
-image's planes, the camera fitted on the frames so far: robot_retarget.keypoints
-.online_reprojection; the warm-up's camera frames are more than it needs to fit one). Per
-control tick, on the rotations interpolated between the last two camera frames (as the control
-loop does), as ``bench pipeline``:
-``network``, ``targets``, ``optimizer`` (the three parts of
+points, the person rule, the glitch gate: robot_retarget.keypoints.glitch_gate),
+``keypoint model`` (the causal keypoint model's step: features, encoders, head → 22 canonical
+rotations) and ``image planes`` (those rotations turned into the image's planes, the camera
+fitted on the frames so far: robot_retarget.keypoints.online_reprojection; the warm-up's
+camera frames are more than it needs to fit one). Per control tick, on the rotations
+interpolated between the last two camera frames (as the control loop does), as ``bench
+pipeline``: ``network``, ``targets``, ``optimizer`` (the three parts of
 :class:`robot_retarget.pipeline.step.RetargetStep`), ``safety``. ``total``: a tick's stages
 plus the camera frame's when one arrived on that tick; ``total, tick with a camera frame``:
 those ticks only.
@@ -45,6 +45,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
     from robot_retarget.geometry import quaternion as quat
     from robot_retarget.hardware.safety import SafetyLayer
     from robot_retarget.hardware.types import JointCommand
+    from robot_retarget.keypoints.glitch_gate import KeypointGate
     from robot_retarget.keypoints.online_reprojection import OnlineReprojection
     from robot_retarget.keypoints.synthetic import EstimatorNoise, render_keypoints
     from robot_retarget.keypoints.virtual_camera import VirtualCamera
@@ -75,6 +76,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
     keypoint_step = load_keypoint_model(args.keypoint_model).online()
     planes = OnlineReprojection(fps=CAMERA_FPS)
     tracker = PersonTracker()
+    gate = KeypointGate(CAMERA_FPS)
     model = load_runtime_model(args.model or default_model_name())
     step = RetargetStep(config, model, motion.skeleton, foot_lock=args.foot_lock)
     step.retargeter.warm_up()
@@ -101,6 +103,7 @@ def run_2d(args: argparse.Namespace) -> list[dict[str, Any]]:
             if chosen is None:
                 raise RuntimeError(f"benchmark frame {frame}: the performer was not followed")
             xy, _conf, valid = pkt.people[chosen]
+            valid = gate.step(xy, valid, frame / CAMERA_FPS)  # as the source does
             t1 = time.perf_counter()
             lifted = keypoint_step.step(xy, valid)
             t2 = time.perf_counter()
