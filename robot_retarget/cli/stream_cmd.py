@@ -178,6 +178,7 @@ def run(args: argparse.Namespace) -> int:
             f"--image-size is about the camera of a udp-keypoints:// source, not "
             f"{args.source!r}; leave it out"
         )
+    _check_source_options(args)
     _check_remote(args)
     if args.view:
         from robot_retarget.viewer.dependency import require_viser
@@ -291,6 +292,33 @@ def run(args: argparse.Namespace) -> int:
     if args.record is not None:
         _save_record(args.record, result.log, config.joint_names, rate, force=args.force)
     return 0
+
+
+def _check_source_options(args: argparse.Namespace) -> None:
+    """Options the chosen source would ignore are refused by name."""
+    from robot_retarget.errors import RetargetError
+
+    src = args.source
+    ignored = []
+    if not src.startswith("replay:"):
+        ignored += [o for o, on in (("--loop", args.loop), ("--speed", args.speed != 1.0)) if on]
+    if args.keypoint_model is not None and not src.startswith("udp-keypoints://"):
+        ignored.append("--keypoint-model")
+    if not src.startswith(("udp://", "tcp-bvh://", "udp-keypoints://")):
+        network = (("--token", bool(args.token)), ("--allow-remote", args.allow_remote),
+                   ("--insecure-no-token", args.insecure_no_token))  # fmt: skip
+        ignored += [o for o, on in network if on]
+    elif args.insecure_no_token and not args.allow_remote:
+        raise RetargetError(
+            "--insecure-no-token is about accepting senders on other hosts, and without "
+            "--allow-remote only this computer can send: drop it, or add --allow-remote"
+        )
+    if ignored:
+        raise RetargetError(
+            f"{', '.join(ignored)}: the source {src!r} does not use "
+            f"{'it' if len(ignored) == 1 else 'them'}; leave "
+            f"{'it' if len(ignored) == 1 else 'them'} out"
+        )
 
 
 def _check_remote(args: argparse.Namespace) -> None:

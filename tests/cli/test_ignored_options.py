@@ -94,3 +94,21 @@ def test_canonical_input_needs_a_skeleton_aware_model(
                  "--canonical-input"]) != 0  # fmt: skip
     assert "--canonical-input: for a skeleton-aware model" in capsys.readouterr().err
     assert not (tmp_path / "a.npz").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        (["--source", "udp://127.0.0.1:9", "--loop"], "--loop: the source"),
+        (["--source", "udp://127.0.0.1:9", "--speed", "2"], "--speed: the source"),
+        (["--source", "udp://127.0.0.1:9", "--keypoint-model", "agnostic2d"],
+         "--keypoint-model: the source"),
+        (["--source", f"replay:{WALK}", "--token", "x"], "--token: the source"),
+        (["--source", "udp://127.0.0.1:9", "--insecure-no-token"], "without --allow-remote"),
+    ],
+)  # fmt: skip
+def test_stream_refuses_options_its_source_ignores(
+    capsys: pytest.CaptureFixture[str], extra: list[str], says: str
+) -> None:
+    assert main(["stream", "--backend", "sim", "--duration", "0.2", *extra]) != 0
+    assert says in capsys.readouterr().err
