@@ -11,10 +11,12 @@ robot's control rate (or ``fps``); the trajectory starts at the clip's first fra
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from robot_retarget.errors import RetargetError
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.pipeline.convert import ClipResult, convert_motion
@@ -52,6 +54,8 @@ def retarget(
     loaded model; default: the shipped default — its numpy runtime, no torch needed), at ``fps``
     (default: the robot's control rate). ``foot_lock``: run the residual network's foot lock
     (off on the robot by default, as in ``convert``)."""
+    if fps is not None and not (math.isfinite(fps) and fps > 0.0):
+        raise RetargetError(f"fps must be a positive number of frames per second, got {fps}")
     motion = (
         clip_or_motion
         if isinstance(clip_or_motion, HumanMotion)

@@ -57,3 +57,18 @@ def test_retarget_takes_a_loaded_motion_robot_and_model() -> None:
     assert result.trajectory.fps == 25.0
     assert result.model == "copy"
     assert result.report.limits.ok
+
+
+def test_api_errors_are_retarget_errors_that_name_what_is_wrong(tmp_path: Path) -> None:
+    for fps in (0.0, -5.0, float("nan")):
+        with pytest.raises(rr.RetargetError, match="fps must be a positive number"):
+            rr.retarget(CLIP, fps=fps)
+    traj = rr.retarget(CLIP).trajectory
+    missing = tmp_path / "no" / "x.npz"
+    with pytest.raises(rr.RetargetError, match="create it first"):
+        traj.write(missing)
+    out = traj.write(tmp_path / "x.npz")
+    with pytest.raises(rr.RetargetError, match="overwrite=True"):
+        traj.write(out)  # running the README's example twice says how to replace the file
+    assert traj.write(out, overwrite=True) == out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.npz"]  # no .part left behind

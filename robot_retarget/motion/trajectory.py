@@ -142,15 +142,21 @@ class RobotTrajectory:
                 path=p,
             )
         self.check_finite(p)
+        if not p.parent.is_dir():
+            raise MotionFormatError(f"no folder {p.parent} to write into; create it first", path=p)
         tmp = p.with_name(p.name + ".part")
-        if suffix == ".csv":
-            tmp.write_text(self._csv_text(p), encoding="utf-8")
-        elif suffix == ".json":
-            tmp.write_text(json.dumps(self._json_object(), indent=1) + "\n", encoding="utf-8")
-        else:
-            with tmp.open("wb") as fh:
-                np.savez(fh, **self._npz_arrays())  # type: ignore[arg-type]
-        os.replace(tmp, p)
+        try:
+            if suffix == ".csv":
+                tmp.write_text(self._csv_text(p), encoding="utf-8")
+            elif suffix == ".json":
+                tmp.write_text(json.dumps(self._json_object(), indent=1) + "\n", encoding="utf-8")
+            else:
+                with tmp.open("wb") as fh:
+                    np.savez(fh, **self._npz_arrays())  # type: ignore[arg-type]
+            os.replace(tmp, p)
+        except OSError as exc:  # a read-only folder, a full disk: nothing half-written stays
+            tmp.unlink(missing_ok=True)
+            raise MotionFormatError(f"cannot write the file ({exc.strerror})", path=p) from exc
         return p
 
     @classmethod
