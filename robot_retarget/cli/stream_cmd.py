@@ -144,7 +144,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
+_SIGTERM_SEEN: list[bool] = []  # set by the handler: the stop is reported as SIGTERM's
+
+
 def _on_sigterm(signum: int, frame: FrameType | None) -> None:
+    _SIGTERM_SEEN.append(True)
     raise KeyboardInterrupt  # the loop's smooth stop handles both the same way
 
 
@@ -256,6 +260,7 @@ def run(args: argparse.Namespace) -> int:
         f"model {model.name}; Ctrl-C stops smoothly"
     )
     old: Any = None
+    _SIGTERM_SEEN.clear()
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         old = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
@@ -281,7 +286,7 @@ def run(args: argparse.Namespace) -> int:
     modes = ", ".join(f"{m.value}" for _, m in result.transitions)
     print(f"modes: {modes or 'none (no input arrived)'}")
     if result.interrupted:
-        print("stopped by Ctrl-C: torque off")
+        print(f"stopped by {'SIGTERM' if _SIGTERM_SEEN else 'Ctrl-C'}: torque off")
     if result.step.frames == 0 and not result.interrupted:
         print(
             f"no input arrived from {source.describe()}: nothing was retargeted or sent (is the "

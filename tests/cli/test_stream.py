@@ -235,7 +235,9 @@ _CHILD = (
 )
 
 
-def test_ctrl_c_stops_smoothly_and_the_bus_sees_torque_off() -> None:
+@pytest.mark.parametrize(("stop", "said"), [(signal.SIGINT, "Ctrl-C"), (signal.SIGTERM, "SIGTERM")])
+def test_ctrl_c_stops_smoothly_and_the_bus_sees_torque_off(stop: int, said: str) -> None:
+    """Ctrl-C, or SIGTERM from a service manager: the same smooth stop, reported as itself."""
     config = load_robot_config("op3")
     with SimulatedRobotBus(config, config.init_pose) as sim:
         port = sim.ports["main"]
@@ -255,7 +257,7 @@ def test_ctrl_c_stops_smoothly_and_the_bus_sees_torque_off() -> None:
             assert all(sim.torque_on()), "the stream never switched the torque on"
             time.sleep(1.0)  # stream for a while
             moved_from_init = float(np.max(np.abs(sim.goal_q() - config.init_pose)))
-            proc.send_signal(signal.SIGINT)
+            proc.send_signal(stop)
             out, err = proc.communicate(timeout=30.0)
         finally:
             if proc.poll() is None:
@@ -265,7 +267,7 @@ def test_ctrl_c_stops_smoothly_and_the_bus_sees_torque_off() -> None:
         torque = sim.torque_on()
         goal = sim.goal_q()
     assert proc.returncode == 0, err
-    assert "stopped by Ctrl-C" in out
+    assert f"stopped by {said}: torque off" in out
     assert "interrupted: stopping smoothly" in err
     assert moved_from_init > 0.01
     assert not any(torque)
