@@ -13,7 +13,7 @@ import json
 from typing import Any, Protocol, cast
 
 NAME = "bench"
-HELP = "Speed benchmarks (median and p99): solve, loop, model, pipeline, convert."
+HELP = "Speed benchmarks (median and p99): solve, loop, model, pipeline, convert, stream."
 
 BenchRecord = dict[str, Any]
 

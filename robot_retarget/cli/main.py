@@ -28,7 +28,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("eval", "robot_retarget.cli.eval_cmd", "Evaluate retargeting models on unseen subjects."),
     ("crossval", "robot_retarget.cli.crossval_cmd", "Cross-validate a model over subject folds."),
     ("eval-robot", "robot_retarget.cli.eval_robot_cmd", "Score the pipeline on a robot."),
-    ("bench", "robot_retarget.cli.bench_cmd", "Speed benchmarks: solve, loop, model, pipeline."),
+    ("bench", "robot_retarget.cli.bench_cmd", "Speed benchmarks: median and p99 of each stage."),
     ("export", "robot_retarget.cli.export_cmd", "Export a checkpoint to its numpy runtime."),
     ("view", "robot_retarget.cli.view_cmd", "Show a trajectory and its clip in a browser."),
 )
