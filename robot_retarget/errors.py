@@ -27,6 +27,7 @@ class ConfigError(RetargetError):
         self.path = None if path is None else str(path)
         self.key = key
         self.allowed = allowed
+        self.message = message
         parts = []
         if self.path is not None:
             parts.append(self.path)

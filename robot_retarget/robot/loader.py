@@ -366,7 +366,7 @@ class _Builder:
 
     def joints(self, value: Any, buses: Mapping[str, BusConfig]) -> tuple[JointConfig, ...]:
         out = [
-            self.joint(item, f"joints[{i}]", buses)
+            self.named_joint(item, f"joints[{i}]", buses)
             for i, item in enumerate(self.sequence(value, "joints", min_len=1))
         ]
         self.unique([j.name for j in out], "joints", "joint name")
@@ -382,6 +382,19 @@ class _Builder:
                 )
             ids[slot] = i
         return tuple(out)
+
+    def named_joint(self, item: Any, key: str, buses: Mapping[str, BusConfig]) -> JointConfig:
+        """:meth:`joint`, its errors also naming the joint (a long file's list index is hard
+        to count to)."""
+        try:
+            return self.joint(item, key, buses)
+        except ConfigError as e:
+            name = item.get("name") if isinstance(item, dict) else None
+            if not isinstance(name, str) or e.key is None or not e.key.startswith(key + "."):
+                raise
+            raise ConfigError(
+                f"{e.message} (joint {name!r})", path=e.path, key=e.key, allowed=e.allowed
+            ) from None
 
     def joint(self, item: Any, key: str, buses: Mapping[str, BusConfig]) -> JointConfig:
         m = self.mapping(item, key, _JOINT_REQUIRED)

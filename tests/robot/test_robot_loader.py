@@ -102,6 +102,10 @@ def test_mistake_names_file_and_key(
     assert message in str(err)
     assert str(path) in str(err)
     assert f"'{key}'" in str(err)
+    own_field = (".limits.", ".servo.model", ".servo.bus", ".servo.direction")
+    if key.startswith("joints[") and any(f in key for f in own_field):  # the joint is named
+        index = int(key[len("joints[") : key.index("]")])
+        assert f"(joint {load_robot_config('op3').joints[index].name!r})" in str(err)
 
 
 def test_unknown_key_lists_allowed_keys(tmp_path: Path, op3_text: str) -> None:
