@@ -4,7 +4,8 @@
   moment that command was handed to the backend (counted once per input frame);
 - jitter: how late each tick started against its schedule;
 - late frames: input frames that arrived after their play time (the loop held meanwhile);
-- dropped frames: what the source refused (by reason) plus ticks the loop overran.
+- dropped frames: what the source refused (by reason); overruns (ticks the loop overran) are
+  counted on their own.
 """
 
 from __future__ import annotations
@@ -74,6 +75,6 @@ class LiveStats:
             jitter_p99_ms=_pct(self.jitter_s, 99),
             late_frames=self.late_frames,
             late_ticks=self.late_ticks,
-            dropped_frames=source.dropped_total + self.overruns,
+            dropped_frames=source.dropped_total,
             overruns=self.overruns,
         )

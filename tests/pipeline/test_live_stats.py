@@ -22,11 +22,11 @@ def test_snapshot_percentiles_and_counts() -> None:
     assert snap.latency_median_ms == pytest.approx(50.5)
     assert snap.latency_p99_ms == pytest.approx(99.01)
     assert snap.jitter_median_ms == pytest.approx(0.2)
-    assert snap.dropped_frames == 4  # 2 source drops + 2 overruns
+    assert snap.dropped_frames == 2  # the source's drops; the 2 overruns are their own count
     assert snap.late_frames == 4
     line = snap.line()
     assert "latency median 50.50 ms" in line
-    assert "dropped 4" in line
+    assert "dropped 2 | overruns 2" in line
 
 
 def test_empty_windows_give_nan() -> None:
