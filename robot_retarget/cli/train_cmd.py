@@ -169,28 +169,28 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-# What a run leaves in its folder (robot_retarget.nn.train, agnostic2d_training, train_log).
-_RUN_FILES = ("config.json", "log.csv", "best.pt", "best.npz", "last.pt", "last.npz",
-              "trainer_state.pt")  # fmt: skip
-
-
 def _claim_run_folder(args: argparse.Namespace) -> None:
     """Before any work: --steps is positive, and --out is a folder the run may write — not one
-    that holds another run unless --resume continues it or --force replaces it."""
+    that holds another run unless --resume continues it or --force replaces it (deleted by the
+    training itself once its settings and data have loaded, so a refused run deletes nothing)."""
+    from robot_retarget.nn.run_folder import run_files
+
     if args.steps < 1:
         raise TrainArgumentError(f"--steps must be at least 1, got {args.steps}")
+    if args.force and args.resume:
+        raise TrainArgumentError("--force starts the run again, --resume continues it: pass one")
+    if args.force and int(os.environ.get("WORLD_SIZE", "1")) > 1:
+        raise TrainArgumentError(
+            "--force under torchrun: delete the run folder's files first, or name a new --out"
+        )
     out = Path(args.out)
-    if not args.resume and os.environ.get("RANK", "0") == "0":  # torchrun: rank 0 decides
-        held = [n for n in _RUN_FILES if (out / n).exists()]
-        held += [p.name for p in sorted(out.glob("events.out.tfevents.*"))]
-        if held and not args.force:
-            raise TrainArgumentError(
-                f"--out {out} already holds a run ({', '.join(held)}): pass --resume to "
-                "continue it, --force to start a new one there (its files are deleted), or "
-                "name another folder"
-            )
-        for name in held:
-            (out / name).unlink()
+    held = [p.name for p in run_files(out)]
+    if held and not args.resume and not args.force and os.environ.get("RANK", "0") == "0":
+        raise TrainArgumentError(
+            f"--out {out} already holds a run ({', '.join(held)}): pass --resume to continue "
+            "it, --force to start a new one there (its files are deleted), or name another "
+            "folder"
+        )
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -274,7 +274,7 @@ def run(args: argparse.Namespace) -> int:
 
     command = _command_line()
     _claim_run_folder(args)
-    result = train(config, resume=args.resume, progress=show, command=command)
+    result = train(config, resume=args.resume, progress=show, command=command, fresh=args.force)
     if os.environ.get("RANK", "0") != "0":
         return 0  # torchrun: rank 0 exports and reports the one run
     runtime = _export_best(result.best_path)
@@ -424,5 +424,6 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
         )
 
     _claim_run_folder(args)
-    print(json.dumps(train_agnostic2d(config, progress=show, command=_command_line())))
+    summary = train_agnostic2d(config, progress=show, command=_command_line(), fresh=args.force)
+    print(json.dumps(summary))
     return 0

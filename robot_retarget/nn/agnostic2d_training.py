@@ -53,6 +53,7 @@ from robot_retarget.nn.dataset import (
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
 from robot_retarget.nn.models.registry import KEYPOINT_MODELS
 from robot_retarget.nn.motion_augmentation import MotionAugmentation, augmented_window
+from robot_retarget.nn.run_folder import clear_run
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime, save_agnostic2d
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint, default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
@@ -393,8 +394,10 @@ def train_agnostic2d(
     *,
     progress: Callable[[KeypointProgress], None] | None = None,
     command: str = "",
+    fresh: bool = False,
 ) -> dict[str, Any]:
-    """Train, validate, checkpoint (see the module docstring); returns a JSON-able summary."""
+    """Train, validate, checkpoint (see the module docstring); returns a JSON-able summary.
+    ``fresh``: a run already in the folder is deleted once the data have loaded."""
     out = Path(cfg.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     dataset = load_dataset(
@@ -403,6 +406,8 @@ def train_agnostic2d(
     if cfg.exclude_subjects:
         dataset = dataset.without(cfg.exclude_subjects)
     train_set, val_set = dataset.split(cfg.validation_subjects)
+    if fresh:
+        clear_run(out)
     (out / "config.json").write_text(json.dumps({**asdict(cfg), "command": command}, indent=2))
     torch.manual_seed(cfg.seed)
     config = dict(cfg.model_config)

@@ -73,6 +73,7 @@ from robot_retarget.nn.models.registry import (
 )
 from robot_retarget.nn.models.training import check_loss_weights, training_step
 from robot_retarget.nn.retarget_losses import bone_direction_loss, contact_loss, effector_loss
+from robot_retarget.nn.run_folder import clear_run
 from robot_retarget.nn.train_log import TrainLog
 
 TRAINABLE_MODELS: tuple[str, ...] = ("nkn", "pmnet", "residual", "tdcn", "san")
@@ -281,9 +282,12 @@ def train(
     resume: bool = False,
     progress: Callable[[TrainProgress], None] | None = None,
     command: str = "",
+    fresh: bool = False,
 ) -> TrainResult:
     """Run (or continue, with ``resume``) training as ``config`` says; returns where the
-    checkpoints are. Raises TrainError / DatasetError / ModelLoadError with what to change."""
+    checkpoints are. ``fresh``: a run already in the folder is deleted once the settings and
+    the data have loaded (``train --force``). Raises TrainError / DatasetError / ModelLoadError
+    with what to change."""
     if config.model not in TRAINABLE_MODELS:
         raise TrainError(
             f"model {config.model!r} cannot be trained; choose {', '.join(TRAINABLE_MODELS)} "
@@ -304,7 +308,7 @@ def train(
     state_path = out / "trainer_state.pt"
     last_path = out / "last.pt"
     best_path = out / "best.pt"
-    if not resume and (last_path.exists() or state_path.exists()):
+    if not resume and not fresh and (last_path.exists() or state_path.exists()):
         raise TrainError(
             "run folder already holds a training run; pass --resume to continue it or choose "
             "another --out",
@@ -326,6 +330,8 @@ def train(
         dataset = _exclude(dataset, config.exclude_subjects)
     train_set, val_set = dataset.split(config.validation_subjects)
     robots = robot_skeletons(config.robots)
+    if fresh and not resume:
+        clear_run(out)
     if resume:
         saved = json.loads(cfg_path.read_text())
         saved_cfg = TrainConfig.from_json(saved["config"])
