@@ -78,6 +78,9 @@ def _consistent(found: dict[str, int], parents: Sequence[int]) -> bool:
     return True
 
 
+_NEARLY = 2  # required joints a naming family may lack and still speak for the skeleton
+
+
 def _contradicted(mapped: dict[str, int], named: dict[str, int]) -> dict[str, int]:
     """The canonical joints that ``mapped`` puts on a source joint whose name (``named``, a
     naming family's lookup) says it is another canonical joint."""
@@ -155,8 +158,10 @@ def map_joints(
         # by a joint: such a mapping contradicts the names, and is refused. (Names that are all
         # there but nested against the tree are not trusted: the tree decides those.)
         named = ranked[0][2] if ranked else {}
-        incomplete = any(r not in named for r in REQUIRED_JOINTS)
-        wrong = _contradicted(auto.joints, named) if incomplete else {}
+        lacking = sum(r not in named for r in REQUIRED_JOINTS)
+        # Only a family the names nearly complete speaks for the skeleton: one or two joints
+        # named after it (a custom rig's "Spine1") must not veto the tree's mapping.
+        wrong = _contradicted(auto.joints, named) if 0 < lacking <= _NEARLY else {}
         if (
             not wrong
             and all(r in auto.joints for r in REQUIRED_JOINTS)

@@ -120,3 +120,14 @@ def test_a_named_skeleton_missing_a_joint_is_refused_not_shifted(
         map_joints([clip.names[k] for k in keep], cut_geo, path="cut.bvh")
     assert info.value.missing == (cut,)
     assert f"lacks {cut}" in str(info.value)
+
+
+def test_a_few_family_names_on_a_custom_rig_do_not_veto_its_layout(motion_fixtures: Path) -> None:
+    """Only a family the names nearly complete speaks for a skeleton: a custom rig whose spine
+    happens to be named Spine1, Spine2, Spine3 still maps by its tree."""
+    clip = read_bvh(motion_fixtures / "unknown_names.bvh", max_frames=1)
+    spine = {"bone_01": "Spine1", "bone_02": "Spine2", "bone_03": "Spine3"}
+    names = [spine.get(n, n) for n in clip.names]
+    jm = map_joints(names, clip_geometry(clip))
+    assert jm.family == nf.AUTOMATIC
+    assert jm.source_names(names)["Spine"] == "Spine1"
