@@ -288,9 +288,14 @@ def run(args: argparse.Namespace) -> int:
     if result.interrupted:
         print(f"stopped by {'SIGTERM' if _SIGTERM_SEEN else 'Ctrl-C'}: torque off")
     if result.step.frames == 0 and not result.interrupted:
+        received = source.stats.received
+        why = (
+            f"{received} packet(s) arrived and none was usable (the source line above says why)"
+            if received
+            else "is the sender running, and sending to this address and port?"
+        )
         print(
-            f"no input arrived from {source.describe()}: nothing was retargeted or sent (is the "
-            "sender running, and sending to this address and port?)",
+            f"no input frame from {source.describe()}: nothing was retargeted or sent ({why})",
             file=sys.stderr,
         )
         return 1

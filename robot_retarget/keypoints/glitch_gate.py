@@ -16,8 +16,9 @@ person's size in the image (:class:`BodyScale`):
   been refused for :data:`REANCHOR_S`, when it is taken where it now is (an occlusion that
   ended elsewhere, or a first position that was the wrong one).
 
-Nothing is marked before the body's size is known (a frame with shoulders and hips in view),
-and the limits are far from what the noise of a working estimator does: on the evaluation's
+Nothing is marked before the body's size is known (a frame with three of its segments in
+view), the gate starts over when the sender's clock goes back (a restart), and the limits are
+far from what the noise of a working estimator does: on the evaluation's
 synthetic views (pixel jitter up to 1.5 % of the height, 1.5× at wrists and ankles) no point is
 marked. The model sees a marked point as missing, as it was trained to (dropouts, occlusions).
 """
@@ -125,27 +126,31 @@ class KeypointGate:
 
     def reset(self) -> None:
         self.scale.reset()
+        self._t = -math.inf
         self._last = np.full((NUM_KEYPOINTS, 2), np.nan)
         self._last_t = np.full(NUM_KEYPOINTS, -math.inf)
         self._refused_since = np.full(NUM_KEYPOINTS, math.inf)
 
     def step(self, xy: FloatArray, valid: BoolArray, t_s: float) -> BoolArray:
+        if t_s < self._t:  # the sender's clock went back: a restart, maybe another person
+            self.reset()
+        self._t = t_s
         p = np.where(valid[:, None], np.asarray(xy, dtype=np.float64), 0.0)
-        ok = np.array(valid, dtype=bool)
+        ok = np.array(valid, dtype=bool) & np.isfinite(p).all(axis=1)
         d = p[_A] - p[_B]
-        lengths = np.sqrt((d * d).sum(axis=1))
+        lengths = np.hypot(d[:, 0], d[:, 1])  # hypot: no overflow at a glitch's 1e200 px
         seen = ok[_A] & ok[_B]
         size = self.scale.pixels
         if size is not None:
             refuse = np.zeros(NUM_KEYPOINTS, dtype=bool)
             if self.scale.settled:
                 step = p - self._last
-                moved = np.sqrt((step * step).sum(axis=1))  # NaN where never accepted: False
+                moved = np.hypot(step[:, 0], step[:, 1])  # NaN where never accepted: False
                 allowed = (MAX_SPEED * (t_s - self._last_t) + MARGIN) * size
                 waited = t_s - self._refused_since >= REANCHOR_S - 1e-9
                 refuse = ok & (moved > allowed) & ~waited
             long = seen & (lengths > SLACK * _SHARE * size)
-            upper = long[_UPPER]
+            upper = long[_UPPER] & ~refuse[_A[_UPPER]]
             refuse[_B[_UPPER][upper]] = True
             lower = long[_LOWER] & ~refuse[_A[_LOWER]]
             refuse[_B[_LOWER][lower]] = True
@@ -161,7 +166,7 @@ class KeypointGate:
         torso = None
         if ok[_SHOULDERS].all() and ok[_HIPS].all():
             mid = 0.5 * (p[_SHOULDERS].sum(axis=0) - p[_HIPS].sum(axis=0))
-            torso = float(np.sqrt((mid * mid).sum()))
+            torso = float(np.hypot(mid[0], mid[1]))
         self.scale.add(lengths, seen, torso)
         return ok
 

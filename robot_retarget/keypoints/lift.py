@@ -87,9 +87,9 @@ def without_glitches(sequence: KeypointSequence) -> tuple[KeypointSequence, int]
 
 def _lift(
     sequence: KeypointSequence, model: Agnostic2DRuntime, *, causal: bool, image_planes: bool
-) -> tuple[HumanMotion, CameraEstimate | None, int]:
-    """:func:`lift_keypoints`, the camera the image's planes used (the last one, causal) and
-    the number of points the glitch gate refused."""
+) -> tuple[HumanMotion, CameraEstimate | None, int, int]:
+    """:func:`lift_keypoints`, the camera the image's planes used (the last one, causal), the
+    number of points the glitch gate refused and of frames without a body after it."""
     sequence, refused = without_glitches(sequence)
     skeleton = default_canonical_skeleton()
     # Averaged with the mirrored image's answer, as the live step does (Agnostic2DRuntime.online).
@@ -119,7 +119,7 @@ def _lift(
     last = np.maximum.accumulate(np.where(seen, np.arange(len(seen)), -1))
     last[last < 0] = int(np.argmax(seen))
     lifted = HumanMotion(skeleton, quats[last], root, sequence.fps, source_path=sequence.source)
-    return lifted, camera, refused
+    return lifted, camera, refused, int((~seen).sum())
 
 
 def load_keypoint_motion(
@@ -142,9 +142,7 @@ def load_keypoint_motion(
             seq.xy[:max_frames], seq.confidence[:max_frames], seq.valid[:max_frames], seq.fps,
             seq.source,
         )  # fmt: skip
-    motion, camera, refused = _lift(
+    motion, camera, refused, held = _lift(
         seq, load_keypoint_model(model, whole_clip=True), causal=False, image_planes=image_planes
     )
-    return LiftedKeypoints(
-        motion, int((~body_seen(seq)).sum()), seq.missing_fraction, camera, refused
-    )
+    return LiftedKeypoints(motion, held, seq.missing_fraction, camera, refused)

@@ -70,7 +70,8 @@ def test_a_stream_that_never_gets_input_says_so_and_fails(
     out = capsys.readouterr()
     assert "nan" not in out.out
     assert "no input frame arrived" in out.out
-    assert "no input arrived from udp://" in out.err
+    assert "no input frame from udp://" in out.err
+    assert "is the sender running" in out.err
     assert not record.exists()  # nothing streamed, nothing recorded
 
 

@@ -78,3 +78,30 @@ def test_the_lifted_pose_barely_notices_a_glitch() -> None:
     clean = lift.lift_keypoints(seq, model, causal=True).local_quats
     gated = lift.lift_keypoints(_glitched(seq, (100.0, 700.0)), model, causal=True).local_quats
     assert float(np.degrees(quat.angle_between(clean, gated)).mean()) < 1.0
+
+
+def test_a_glitched_shoulder_is_refused_and_its_elbow_kept() -> None:
+    """The bone test goes root outward: a shoulder refused for its speed does not also cost
+    the elbow it makes look far away."""
+    seq = _demo()
+    gate = KeypointGate(seq.fps)
+    for t in range(45):
+        gate.step(seq.xy[t], seq.valid[t], t / seq.fps)
+    xy = seq.xy[45].copy()
+    xy[Coco.left_shoulder] = (1e200, -1e200)  # and no overflow warning either
+    ok = gate.step(xy, seq.valid[45], 45 / seq.fps)
+    assert not ok[Coco.left_shoulder]
+    assert ok[Coco.left_elbow] == seq.valid[45, Coco.left_elbow]
+
+
+def test_a_sender_restart_starts_the_gate_over() -> None:
+    """A clock that goes back is a new sender (maybe another person): nothing is refused for
+    having moved since the old one's frames."""
+    seq = _demo()
+    gate = KeypointGate(seq.fps)
+    for t in range(60):
+        gate.step(seq.xy[t + 200], seq.valid[t + 200], t / seq.fps)
+    for t in range(30):
+        ok = gate.step(seq.xy[t], seq.valid[t], t / seq.fps)
+        np.testing.assert_array_equal(ok, seq.valid[t])
+    assert gate.refused == 0
