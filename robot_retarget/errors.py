@@ -58,6 +58,12 @@ class MotionFormatError(RetargetError):
         super().__init__(f"{where}: {message}")
 
 
+class OutputWriteError(MotionFormatError, OSError):
+    """An output file could not be written (its folder is missing, not writable, the disk is
+    full): a RetargetError naming the file, and an OSError, so that code which saves
+    elsewhere when a write fails (stream's recording) still catches it."""
+
+
 class JointMappingError(MotionFormatError):
     """A skeleton's joints cannot be mapped onto the canonical human skeleton."""
 

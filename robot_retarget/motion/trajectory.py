@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.errors import MotionFormatError
+from robot_retarget.errors import MotionFormatError, OutputWriteError
 
 ROOT_POS_COLUMNS: tuple[str, ...] = ("root_x", "root_y", "root_z")
 ROOT_QUAT_COLUMNS: tuple[str, ...] = ("root_qw", "root_qx", "root_qy", "root_qz")
@@ -143,7 +143,7 @@ class RobotTrajectory:
             )
         self.check_finite(p)
         if not p.parent.is_dir():
-            raise MotionFormatError(f"no folder {p.parent} to write into; create it first", path=p)
+            raise OutputWriteError(f"no folder {p.parent} to write into; create it first", path=p)
         tmp = p.with_name(p.name + ".part")
         try:
             if suffix == ".csv":
@@ -156,7 +156,7 @@ class RobotTrajectory:
             os.replace(tmp, p)
         except OSError as exc:  # a read-only folder, a full disk: nothing half-written stays
             tmp.unlink(missing_ok=True)
-            raise MotionFormatError(f"cannot write the file ({exc.strerror})", path=p) from exc
+            raise OutputWriteError(f"cannot write the file ({exc.strerror})", path=p) from exc
         return p
 
     @classmethod
