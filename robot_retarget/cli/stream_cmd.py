@@ -167,21 +167,6 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise RetargetError(f"--{name} must be positive, got {value}")
-    if args.raw_positions and not args.source.startswith("udp://"):
-        raise RetargetError(
-            f"--raw-positions is about the position packets of a udp:// source, not "
-            f"{args.source!r}; leave it out"
-        )
-    if not args.image_planes and not args.source.startswith("udp-keypoints://"):
-        raise RetargetError(
-            f"--no-image-planes is about the 2D keypoints of a udp-keypoints:// source, not "
-            f"{args.source!r}; leave it out"
-        )
-    if args.image_size is not None and not args.source.startswith("udp-keypoints://"):
-        raise RetargetError(
-            f"--image-size is about the camera of a udp-keypoints:// source, not "
-            f"{args.source!r}; leave it out"
-        )
     _check_source_options(args)
     _check_remote(args)
     if args.view:
@@ -309,6 +294,15 @@ def _check_source_options(args: argparse.Namespace) -> None:
     from robot_retarget.errors import RetargetError
 
     src = args.source
+    for option, given, scheme, what in (
+        ("--raw-positions", args.raw_positions, "udp://", "the position packets"),
+        ("--no-image-planes", not args.image_planes, "udp-keypoints://", "the 2D keypoints"),
+        ("--image-size", args.image_size is not None, "udp-keypoints://", "the camera"),
+    ):
+        if given and not src.startswith(scheme):
+            raise RetargetError(
+                f"{option} is about {what} of a {scheme} source, not {src!r}; leave it out"
+            )
     ignored = []
     if not src.startswith("replay:"):
         ignored += [o for o, on in (("--loop", args.loop), ("--speed", args.speed != 1.0)) if on]

@@ -112,6 +112,11 @@ class ClipConverter:
         self.options = options
         self.config = load_robot_config(options.robot)
         self.model = load_runtime_model(options.model)
+        if options.canonical_input and getattr(self.model, "architecture", None) != "san":
+            raise RetargetError(  # before the solver is built: a refused run costs nothing
+                f"--canonical-input: for a skeleton-aware model (a san run), and model "
+                f"{self.model.name} reads the canonical joints always: drop it"
+            )
         self.step = RetargetStep(
             self.config,
             self.model,
@@ -120,11 +125,6 @@ class ClipConverter:
             foot_lock=options.foot_lock,
         )
         self.native_model = None if options.canonical_input else _skeleton_aware(self.model)
-        if options.canonical_input and getattr(self.model, "architecture", None) != "san":
-            raise RetargetError(
-                f"--canonical-input: for a skeleton-aware model (a san run), and model "
-                f"{self.model.name} reads the canonical joints always: drop it"
-            )
 
     def convert(
         self,
