@@ -31,6 +31,7 @@ from functools import partial
 from pathlib import Path
 from typing import TextIO
 
+from robot_retarget.cli.fallback_warning import fallback_warning
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.errors import MotionFormatError, RetargetError
 from robot_retarget.pipeline.clip_converter import (
@@ -395,4 +396,7 @@ def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
         f"{sum(r.clipped_commands for r in ok)} commands, "
         f"{sum(r.fallbacks for r in ok)} solver fallbacks"
     )
+    warning = fallback_warning(sum(r.fallbacks for r in ok), frames)
+    if warning is not None:
+        lines.append(f"  {warning}")
     return "\n".join(lines)

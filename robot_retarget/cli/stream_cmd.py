@@ -26,6 +26,7 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
+from robot_retarget.cli.fallback_warning import fallback_warning
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.cli.image_size_arg import image_size_argument
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
@@ -268,6 +269,9 @@ def run(args: argparse.Namespace) -> int:
         print(line)
     print(loop.safety.report())
     print(f"solver fallbacks: {result.step.fallbacks}")
+    warning = fallback_warning(result.step.fallbacks, result.step.frames)
+    if warning is not None:
+        print(warning)
     modes = ", ".join(f"{m.value}" for _, m in result.transitions)
     print(f"modes: {modes or 'none (no input arrived)'}")
     if result.interrupted:

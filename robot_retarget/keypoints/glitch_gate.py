@@ -7,16 +7,19 @@ seconds (a wrist thrown across the image for one frame every 0.5 s: three times 
 of the clean stream, arms, legs and head at their speed limits). Two tests, against the
 person's size in the image (:class:`BodyScale`):
 
-- **bone length**: a limb bone (shoulder → elbow … knee → ankle) longer than :data:`SLACK`
-  times its usual share of the body marks its far end missing (root outward: an elbow marked
-  missing leaves its forearm to the second test);
+- **bone length**: a shoulder or hip whose two trunk segments (the shoulder or hip line and
+  its side of the torso) are both longer than :data:`SLACK` times their usual share of the body
+  is missing; then a limb bone (shoulder → elbow … knee → ankle) that long marks its far end
+  missing, unless its near end already is, or jumped further than the far end from where
+  each was last (root outward: an elbow marked missing leaves its forearm to the second test);
 - **speed** (once the body has been seen for :data:`SPEED_AFTER_S`): a point farther from where
   it was last accepted than :data:`MAX_SPEED` body sizes per second (plus :data:`MARGIN` for the
   estimator's noise) allows is missing — until it has
   been refused for :data:`REANCHOR_S`, when it is taken where it now is (an occlusion that
   ended elsewhere, or a first position that was the wrong one).
 
-Nothing is marked before the body's size is known (a frame with three of its segments in
+A coordinate beyond :data:`MAX_PIXELS` is always missing. Nothing else is marked before the
+body's size is known (a frame with three of its segments in
 view), the gate starts over when the sender's clock goes back (a restart), and the limits are
 far from what the noise of a working estimator does: on the evaluation's
 synthetic views (pixel jitter up to 1.5 % of the height, 1.5× at wrists and ankles) no point is
@@ -45,6 +48,8 @@ _SEGMENTS: tuple[tuple[Coco, Coco, float], ...] = (
     (Coco.right_hip, Coco.right_knee, 0.8),
     (Coco.left_knee, Coco.left_ankle, 0.8),
     (Coco.right_knee, Coco.right_ankle, 0.8),
+    (Coco.left_shoulder, Coco.left_hip, 1.0),
+    (Coco.right_shoulder, Coco.right_hip, 1.0),
 )
 
 SLACK = 2.5
@@ -62,6 +67,10 @@ REANCHOR_S = 0.25
 SPEED_AFTER_S = 0.5
 """The speed test starts once the body has been seen this long: a clip's first frames may jump
 (a calibration pose cut to the motion), and a person just seen has no track to keep."""
+MAX_PIXELS = 1e5
+"""A coordinate farther than this from the image origin is missing whatever else is known (no
+camera image is that large; such a number is a sender's fault, and one would swamp the
+camera fit's running sums)."""
 SCALE_WINDOW_S = 2.0
 """The body's size is the 90th percentile of the per-frame estimates over this long: the
 person seen at full size recently, not shrunk by a bend or a turn."""
@@ -72,6 +81,10 @@ _B = np.array([b for _a, b, _s in _SEGMENTS])
 _SHARE = np.array([share for _a, _b, share in _SEGMENTS])
 _UPPER = np.array([2, 3, 6, 7])  # shoulder → elbow, hip → knee: their far ends first
 _LOWER = np.array([4, 5, 8, 9])  # elbow → wrist, knee → ankle: unless the near end went
+# A shoulder or hip is judged on the trunk before its limb is: it is the outlier when both of
+# its trunk segments (the shoulder or hip line, and its side of the torso) are too long.
+_TRUNK_POINTS = np.array([Coco.left_shoulder, Coco.right_shoulder, Coco.left_hip, Coco.right_hip])
+_TRUNK_SEGMENTS = np.array([[0, 10], [0, 11], [1, 10], [1, 11]])
 _SHOULDERS = np.array([Coco.left_shoulder, Coco.right_shoulder])
 _HIPS = np.array([Coco.left_hip, Coco.right_hip])
 
@@ -137,23 +150,36 @@ class KeypointGate:
         self._t = t_s
         p = np.where(valid[:, None], np.asarray(xy, dtype=np.float64), 0.0)
         ok = np.array(valid, dtype=bool) & np.isfinite(p).all(axis=1)
+        wild = ok & (np.abs(p) > MAX_PIXELS).any(axis=1)
+        if wild.any():
+            self.refused += int(wild.sum())
+            ok &= ~wild
+            p[wild] = 0.0
         d = p[_A] - p[_B]
         lengths = np.hypot(d[:, 0], d[:, 1])  # hypot: no overflow at a glitch's 1e200 px
         seen = ok[_A] & ok[_B]
         size = self.scale.pixels
         if size is not None:
             refuse = np.zeros(NUM_KEYPOINTS, dtype=bool)
+            jump = np.zeros(NUM_KEYPOINTS)  # the share of its allowed move each point made
             if self.scale.settled:
                 step = p - self._last
                 moved = np.hypot(step[:, 0], step[:, 1])  # NaN where never accepted: False
                 allowed = (MAX_SPEED * (t_s - self._last_t) + MARGIN) * size
                 waited = t_s - self._refused_since >= REANCHOR_S - 1e-9
                 refuse = ok & (moved > allowed) & ~waited
+                jump = np.nan_to_num(moved / allowed)
             long = seen & (lengths > SLACK * _SHARE * size)
-            upper = long[_UPPER] & ~refuse[_A[_UPPER]]
-            refuse[_B[_UPPER][upper]] = True
-            lower = long[_LOWER] & ~refuse[_A[_LOWER]]
-            refuse[_B[_LOWER][lower]] = True
+            trunk_seen = seen[_TRUNK_SEGMENTS].sum(axis=1) == 2
+            refuse[_TRUNK_POINTS[trunk_seen & long[_TRUNK_SEGMENTS].all(axis=1)]] = True
+            for bones in (_UPPER, _LOWER):
+                near, far = _A[bones], _B[bones]
+                blamed = long[bones] & ~refuse[near]
+                # The end that jumped further from where it was is the outlier (a shoulder
+                # thrown up within the speed allowance); by default the far end.
+                near_moved = jump[near] > jump[far]
+                refuse[near[blamed & near_moved]] = True
+                refuse[far[blamed & ~near_moved]] = True
             if refuse.any():
                 first = refuse & ~np.isfinite(self._refused_since)
                 self._refused_since[first] = t_s

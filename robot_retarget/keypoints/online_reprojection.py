@@ -138,7 +138,7 @@ class OnlineReprojection:
         pose = MatrixPose.of(self.skeleton, np.asarray(local, dtype=np.float64)[None])
         obs = np.asarray(xy, dtype=np.float64)[None]
         rel = pose.positions  # the root is at the origin
-        self._costs += direction_costs(rel, obs, self._rots, self._distance)
+        self._add_costs(direction_costs(rel, obs, self._rots, self._distance))
         scale = image_scales(rel, obs, self._rots[int(np.argmin(self._costs))], self._distance)
         frame_scale = float(scale[0]) if len(scale) else math.nan
         hips = 0.5 * (obs[0, Coco.left_hip] + obs[0, Coco.right_hip])
@@ -154,6 +154,12 @@ class OnlineReprojection:
         changes /= np.linalg.norm(changes, axis=-1, keepdims=True)
         self._changes = changes
         return apply_changes(pose.local, changes[None])[0]
+
+    def _add_costs(self, costs: FloatArray) -> None:
+        # Running sums: one frame's overflow would stay in them for good (the glitch gate
+        # refuses such coordinates first; this keeps the fit whatever reaches it).
+        if np.isfinite(costs).all():
+            self._costs += costs
 
     def _count_frame(self, scale: float, enough: bool, hips: FloatArray) -> None:
         if enough and math.isfinite(scale) and scale > 0.0:
@@ -173,7 +179,7 @@ class OnlineReprojection:
         g.xy[:] = np.where(seen[:, None], obs, 0.0).reshape(-1)
         g.seen[:] = seen
         g.fit()
-        self._costs += g.costs
+        self._add_costs(g.costs)
         g.rotation[:] = self._rots[int(np.argmin(self._costs))].reshape(-1)
         g.scale()
         scale, enough = float(g.scale_out[0]), bool(g.enough[0] > 0.5)

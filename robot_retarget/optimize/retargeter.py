@@ -38,6 +38,7 @@ from robot_retarget.optimize.result import SolveResult, SolveStatus
 from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.solver import (
     STEP_TOL_STATUS,
+    STOPPED_SHORT,
     BufferedSolver,
     SolverSpec,
     build_solver,
@@ -381,6 +382,15 @@ class Retargeter:
         status_text = ""
         if status is not SolveStatus.OPTIMAL:
             iters, status_text = s.last_status()
+            if status is SolveStatus.MAX_ITER and status_text not in STOPPED_SHORT:
+                # The solve failed (e.g. a NaN derivative from a robot config whose bone points
+                # against its rest direction): its iterate, feasible or not, is no solution.
+                status = SolveStatus.FALLBACK
+                q = np.minimum(np.maximum(self._q_prev, lo), hi)
+                cost = self._cost_at(s, q)
+                s.lam_x0[:] = 0.0
+                s.lam_g0[:] = 0.0
+                self._final_check(q, lo, hi)
             # casadi reports the same status at its floor (solver.MIN_STEP_FLOOR): only a
             # chosen tolerance makes a stop "converged".
             if (

@@ -33,6 +33,7 @@ the frame's box).
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -146,8 +147,10 @@ class RetargetSettings:
             elif key in _SCALARS:
                 scalars[key] = _number(key, raw, _SCALARS[key][1], path, allowed)
             else:
+                near = difflib.get_close_matches(key, allowed, n=1)
+                hint = f" (did you mean {near[0]!r}?)" if near else ""
                 raise ConfigError(
-                    "unknown optimizer option", path=path, key=f"retarget.{key}",
+                    f"unknown optimizer option{hint}", path=path, key=f"retarget.{key}",
                     allowed=", ".join(allowed),
                 )  # fmt: skip
         window = int(scalars["window"])

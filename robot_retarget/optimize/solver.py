@@ -165,6 +165,10 @@ def _hessian(spec: SolverSpec, nlp: dict[str, ca.SX]) -> dict[str, Any]:
 
 # casadi's status for a solve stopped by ``SolverSpec.min_step``.
 STEP_TOL_STATUS = "Search_Direction_Becomes_Too_Small"
+MAX_ITER_STATUS = "Maximum_Iterations_Exceeded"
+# The two ways a solve stops short that leave a usable iterate; any other status (NaN in a
+# derivative, "Non_Regular_Sensitivities", a failed QP) is a solve that failed.
+STOPPED_SHORT = frozenset({STEP_TOL_STATUS, MAX_ITER_STATUS})
 
 # What casadi raises (with the iterate written) when an nlpsol with ``error_on_fail`` stops
 # without converging; any other error is not a verdict on the solve and propagates.

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,7 @@ import yaml
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ConfigError
+from robot_retarget.robot.bone_geometry import check_bone_geometry
 from robot_retarget.robot.config import (
     BoneConfig,
     BusConfig,
@@ -37,13 +39,19 @@ from robot_retarget.robot.config import (
     RobotConfig,
     Vec3,
 )
-from robot_retarget.robot.servo_models import RPM_TO_RAD_S, SERVO_MODELS
+from robot_retarget.robot.servo_models import (
+    BAUD_RATES_TEXT,
+    RPM_TO_RAD_S,
+    SERVO_MODELS,
+    baud_supported,
+)
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 CONFIG_DIR_ENV = "ROBOT_RETARGET_CONFIG_DIR"
 _PACKAGE_DIR = Path(__file__).resolve().parents[1]  # .../robot_retarget
 
 PROTOCOLS = (1.0, 2.0)
+MAX_CONTROL_RATE_HZ = 1000.0
 MAX_SERVO_ID = 252  # 253 is reserved (Protocol 2.0), 254 is broadcast
 MAX_RETURN_DELAY_US = 508  # register 0–254 in 2 µs steps
 _AXIS_TOL = 1e-9  # a shorter axis counts as zero
@@ -85,7 +93,7 @@ _HARDWARE_KEYS = (
 
 def config_dirs() -> list[Path]:
     """Folders searched for a robot by name, in order (see the module docstring)."""
-    dirs = [Path(d) for d in os.environ.get(CONFIG_DIR_ENV, "").split(os.pathsep) if d]
+    dirs = [Path(d).expanduser() for d in os.environ.get(CONFIG_DIR_ENV, "").split(os.pathsep) if d]
     dirs.append(_PACKAGE_DIR / "robots")  # a wheel's package data
     dirs.append(_PACKAGE_DIR.parent / "configs" / "robots")  # a checkout
     return dirs
@@ -115,6 +123,15 @@ def resolve_config_path(name_or_path: str | os.PathLike[str]) -> Path:
         or "/" in text
         or (path.suffix in (".yaml", ".yml"))
     ):
+        path = path.expanduser()
+        if path.is_dir():  # a robot's folder, as shipped: <name>/<name>.yaml
+            inside = path / f"{path.name}.yaml"
+            if inside.is_file():
+                return inside
+            raise ConfigError(
+                f"a folder, without {inside.name} in it: name the robot's YAML file",
+                path=path,
+            )
         if not path.is_file():
             raise ConfigError("robot config file not found", path=path)
         return path
@@ -149,7 +166,9 @@ def parse_robot_config(text: str, *, path: str | os.PathLike[str] | None = None)
         raise ConfigError(f"YAML syntax error{line}: {exc.problem or exc}", path=where) from exc
     except yaml.YAMLError as exc:
         raise ConfigError(f"YAML error: {exc}", path=where) from exc
-    return _Builder(where).robot(data)
+    config = _Builder(where).robot(data)
+    check_bone_geometry(config)
+    return config
 
 
 # ----------------------------------------------------------------------------- YAML dialect
@@ -213,6 +232,13 @@ def _unit_tag(scale: float) -> Callable[[_ConfigLoader, yaml.Node], Any]:
 _ConfigLoader.add_constructor(
     yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
     _construct_mapping,
+)
+# YAML 1.2 reads 1e-8 as a number; PyYAML's YAML 1.1 rules need a dot (1.0e-8) and would
+# hand the optimizer a string. Numbers are what anyone writing a weight means.
+_ConfigLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
 )
 _ConfigLoader.add_constructor("!deg", _unit_tag(math.pi / 180.0))
 _ConfigLoader.add_constructor("!rpm", _unit_tag(RPM_TO_RAD_S))
@@ -322,7 +348,15 @@ class _Builder:
         init_pose = self.pose(top["init_pose"], "init_pose", joints)
         safe_pose = self.pose(top["safe_pose"], "safe_pose", joints)
         rate = self.positive(top.get("control_rate_hz", 100.0), "control_rate_hz")
+        if rate > MAX_CONTROL_RATE_HZ:
+            raise self.error(
+                "control_rate_hz",
+                f"{rate:g} Hz is more than a Dynamixel bus serves (a sync write and read of "
+                "a robot's servos take about 1 ms)",
+                allowed=f"0 < rate ≤ {MAX_CONTROL_RATE_HZ:g}",
+            )
         hardware = self.hardware(top.get("hardware", {}) or {})
+        self.check_profile_velocity(hardware, joints)
         retarget = self.retarget(top.get("retarget", {}) or {})
         return RobotConfig(
             name=name,
@@ -342,6 +376,22 @@ class _Builder:
             retarget=retarget,
         )
 
+    def check_profile_velocity(
+        self, hardware: HardwareSettings, joints: Sequence[JointConfig]
+    ) -> None:
+        """A profile velocity above every servo's top speed limits nothing (the servos' own
+        slew limit would be off): almost surely a unit slip (deg/s, rpm)."""
+        v = hardware.profile_velocity_rad_s
+        fastest = max(SERVO_MODELS[j.servo_model].no_load_speed_rad_s for j in joints)
+        if v is not None and v > fastest:
+            raise self.error(
+                "hardware.profile_velocity_rad_s",
+                f"{v:g} rad/s is above every servo's no-load speed (the fastest: "
+                f"{fastest:.2f} rad/s), so it would limit nothing; in rad/s (a unit tag such as "
+                "!rpm converts)",
+                allowed=f"0 < v ≤ {fastest:.2f}",
+            )
+
     def buses(self, value: Any) -> tuple[BusConfig, ...]:
         out = []
         for i, item in enumerate(self.sequence(value, "buses", min_len=1)):
@@ -351,8 +401,12 @@ class _Builder:
             if protocol not in PROTOCOLS:
                 raise self.error(f"{key}.protocol", f"unknown protocol {protocol}", "1.0, 2.0")
             baud = self.integer(m["baud_rate"], f"{key}.baud_rate")
-            if baud <= 0:
-                raise self.error(f"{key}.baud_rate", f"must be > 0, got {baud}", "> 0")
+            if not baud_supported(protocol, baud):
+                raise self.error(
+                    f"{key}.baud_rate",
+                    f"{baud} bps is not a rate Protocol {protocol} servos can be set to",
+                    allowed=BAUD_RATES_TEXT[protocol],
+                )
             out.append(
                 BusConfig(
                     name=self.string(m["name"], f"{key}.name"),
@@ -499,6 +553,13 @@ class _Builder:
                 )
             child_of[j.child_link] = i
         links = {root, *child_of}
+        if root not in {j.parent_link for j in joints}:
+            raise self.error(
+                "root_link",
+                f"no joint hangs from {root!r}: the root link is the parent_link of the joints "
+                "nearest the trunk",
+                allowed=", ".join(sorted({j.parent_link for j in joints} - set(child_of))),
+            )
         for i, j in enumerate(joints):
             if j.parent_link not in links:
                 raise self.error(

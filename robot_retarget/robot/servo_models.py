@@ -63,3 +63,29 @@ def servo_model(name: str) -> ServoModel:
         raise KeyError(
             f"unknown servo model {name!r}; known models: {', '.join(sorted(SERVO_MODELS))}"
         ) from None
+
+
+# Protocol 2.0 (X series, e-Manual "Baud Rate (8)"): a register value picks one of these.
+_PROTOCOL2_BAUDS = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+# Protocol 1.0 (AX / MX, e-Manual "Baud Rate (4)"): 2 Mbps / (value + 1), value 0…254, and
+# MX's 250–252 for 2.25, 2.5 and 3 Mbps; the servo tolerates a host rate 3 % off its own.
+_PROTOCOL1_SPECIAL = (2_250_000, 2_500_000, 3_000_000)
+_BAUD_TOLERANCE = 0.03
+
+BAUD_RATES_TEXT = {
+    2.0: ", ".join(str(b) for b in _PROTOCOL2_BAUDS),
+    1.0: "2000000 / (n + 1) for n = 0…254 within 3 % (1000000, 500000, 115200, 57600, …), "
+    "or 2250000, 2500000, 3000000 (MX)",
+}
+
+
+def baud_supported(protocol: float, baud: int) -> bool:
+    """Whether servos speaking ``protocol`` can be set to ``baud`` bits per second."""
+    if protocol == 2.0:
+        return baud in _PROTOCOL2_BAUDS
+    if baud in _PROTOCOL1_SPECIAL:
+        return True
+    if baud <= 0:
+        return False
+    n = round(2_000_000 / baud) - 1
+    return 0 <= n <= 254 and abs(2_000_000 / (n + 1) - baud) <= _BAUD_TOLERANCE * baud

@@ -105,3 +105,61 @@ def test_a_sender_restart_starts_the_gate_over() -> None:
         ok = gate.step(seq.xy[t], seq.valid[t], t / seq.fps)
         np.testing.assert_array_equal(ok, seq.valid[t])
     assert gate.refused == 0
+
+
+def test_a_shoulder_thrown_before_the_speed_test_is_judged_on_the_trunk() -> None:
+    """In a stream's first half second only the lengths count: a shoulder thrown sideways
+    makes its shoulder line and its side of the torso both too long, so the shoulder is the
+    one refused, not the elbow it makes look far away."""
+    seq = _demo()
+    gate = KeypointGate(seq.fps)
+    for t in range(3):
+        gate.step(seq.xy[t], seq.valid[t], t / seq.fps)
+    assert gate.scale.pixels is not None
+    assert not gate.scale.settled
+    xy = seq.xy[3].copy()
+    xy[Coco.right_shoulder] += (-3.0 * gate.scale.pixels, 0.0)
+    ok = gate.step(xy, seq.valid[3], 3 / seq.fps)
+    assert not ok[Coco.right_shoulder]
+    np.testing.assert_array_equal(
+        np.delete(ok, Coco.right_shoulder), np.delete(seq.valid[3], Coco.right_shoulder)
+    )
+
+
+def test_a_shoulder_that_jumps_within_the_speed_allowance_is_the_one_refused() -> None:
+    """A shoulder thrown up by 1.2 body sizes in one frame (under the speed test's allowance)
+    makes its upper arm too long; the shoulder jumped, the elbow did not, so the shoulder goes."""
+    seq = _demo()
+    gate = KeypointGate(seq.fps)
+    for t in range(45):
+        gate.step(seq.xy[t], seq.valid[t], t / seq.fps)
+    assert gate.scale.settled
+    assert gate.scale.pixels is not None
+    xy = seq.xy[45].copy()
+    xy[Coco.left_shoulder] += (0.0, -1.2 * gate.scale.pixels)
+    ok = gate.step(xy, seq.valid[45], 45 / seq.fps)
+    assert not ok[Coco.left_shoulder]
+    assert ok[Coco.left_elbow] == seq.valid[45, Coco.left_elbow]
+
+
+def test_a_coordinate_no_image_has_is_missing_from_the_first_frame() -> None:
+    """1e200 px in a stream's very first frame, before the body's size is known: missing, and
+    the image's planes fitted on the stream stay finite."""
+    from robot_retarget.keypoints.online_reprojection import OnlineReprojection
+
+    seq = _demo()
+    gate = KeypointGate(seq.fps)
+    planes = OnlineReprojection(fps=seq.fps, image_size=None)
+    rest = np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (22, 1))
+    for t in range(60):
+        xy = seq.xy[t].copy()
+        if t == 0:
+            xy[Coco.left_hip] = (1e200, 1e200)
+        ok = gate.step(xy, seq.valid[t], t / seq.fps)
+        assert ok[Coco.left_hip] == (t > 0 and seq.valid[t, Coco.left_hip])
+        out = planes.step(rest, np.where(ok[:, None], xy, np.nan))
+        assert np.isfinite(out).all()
+    assert gate.refused == 1
+    camera = planes.camera
+    assert camera is not None
+    assert np.isfinite(camera.principal_px).all()

@@ -14,6 +14,7 @@ from robot_retarget.evaluation.robot.segments import human_body_points
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.camera_fit import ASSUMED_DISTANCE_HEIGHTS, estimate_camera
 from robot_retarget.keypoints.coco17 import Coco
+from robot_retarget.keypoints.glitch_gate import MAX_PIXELS
 from robot_retarget.keypoints.lift import lift_keypoints
 from robot_retarget.keypoints.online_reprojection import OnlineReprojection
 from robot_retarget.keypoints.reprojection import reproject, smooth_keypoints, smooth_rotations
@@ -198,13 +199,17 @@ _BODY_FRAME[5:] = True  # shoulders to ankles: a body the lifting follows
 
 @settings(max_examples=30, deadline=None)
 @given(
-    st.lists(st.floats(-1e12, 1e12, allow_nan=False), min_size=102, max_size=102),
+    st.lists(st.floats(-MAX_PIXELS, MAX_PIXELS, allow_nan=False), min_size=34, max_size=34),
+    st.lists(st.floats(-1e12, 1e12, allow_nan=False), min_size=68, max_size=68),
     st.lists(st.booleans(), min_size=34, max_size=34),
 )
-def test_any_keypoints_give_unit_rotations(coords: list[float], seen: list[bool]) -> None:
+def test_any_keypoints_give_unit_rotations(
+    first: list[float], coords: list[float], seen: list[bool]
+) -> None:
     """convert's lifting with the image planes: three frames of anything (huge, coincident,
-    mostly missing; the first shows a body) give finite unit quaternions."""
-    xy = np.array(coords).reshape(3, 17, 2)
+    mostly missing; the first shows a body, within any image, where the glitch gate leaves it)
+    give finite unit quaternions."""
+    xy = np.array(first + coords).reshape(3, 17, 2)
     valid = np.concatenate([_BODY_FRAME[None], np.array(seen).reshape(2, 17)])
     xy[~valid] = np.nan
     conf = valid.astype(np.float64)

@@ -564,3 +564,24 @@ def test_warm_up_keeps_the_state_and_q_prev_overrides_it(op3_retargeter: Retarge
     res = r.solve(FrameTargets(r.bone_directions(cfg.init_pose)), dt, q_prev=measured)
     assert np.all(np.abs(res.q - measured) <= cfg.max_velocity * dt + _EXACT)
     np.testing.assert_array_equal(r.q_prev, res.q)
+
+
+def test_a_failed_solve_holds_the_previous_command_and_says_so(
+    twist_arm_factory: TwistArmFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A solve that stops with any status but the iteration cap or the step tolerance (a NaN
+    derivative, "Non_Regular_Sensitivities") failed: whatever its iterate, the frame holds the
+    previous command and counts as a fallback (it had passed as MAX_ITER, its iterate taken)."""
+    cfg = twist_arm_factory({"max_iter": 1})
+    r = Retargeter(cfg, jit=False)
+    previous = r.history()[0].copy()
+    q = np.clip(np.full(cfg.num_joints, 1.0), cfg.lower, cfg.upper)
+    targets = FrameTargets(r.bone_directions(q), r.bone_normals(q))
+    monkeypatch.setattr(r.online_solver, "last_status", lambda: (2, "Non_Regular_Sensitivities"))
+    res = r.solve(targets, 1.0)
+    assert res.status is SolveStatus.FALLBACK
+    assert res.used_fallback
+    np.testing.assert_array_equal(res.q, previous)
+    np.testing.assert_array_equal(r.history()[0], previous)
+    monkeypatch.setattr(r.online_solver, "last_status", lambda: (1, "Maximum_Iterations_Exceeded"))
+    assert r.solve(targets, 1.0).status is SolveStatus.MAX_ITER

@@ -75,6 +75,32 @@ MISTAKES = [
      "unknown link"),
     ("odd return delay", "return_delay_us: 0", "return_delay_us: 3",
      "hardware.return_delay_us", "got 3"),
+    ("baud rate no servo runs at", "baud_rate: 2000000", "baud_rate: 2000001",
+     "buses[0].baud_rate", "not a rate Protocol 2.0 servos can be set to"),
+    ("control rate beyond a bus", "control_rate_hz: 125", "control_rate_hz: 100000",
+     "control_rate_hz", "more than a Dynamixel bus serves"),
+    ("profile velocity above every servo's speed", "profile_velocity_rad_s: 4.0",
+     "profile_velocity_rad_s: 40", "hardware.profile_velocity_rad_s",
+     "would limit nothing"),
+    ("root link no joint hangs from", "root_link: body_link", "root_link: base_link",
+     "root_link", "no joint hangs from 'base_link'"),
+    # Geometry at the zero pose (robot/bone_geometry.py): each a robot that would stand still.
+    ("forward axis reversed", "forward_axis: [1, 0, 0]", "forward_axis: [-1, 0, 0]",
+     "forward_axis", "forward_axis or up_axis points the wrong way"),
+    ("forward axis turned 90°", "forward_axis: [1, 0, 0]", "forward_axis: [0, 1, 0]",
+     "bones[2]", "lies on the robot's right"),
+    ("forearm start and end swapped", "start: l_el_link, end: l_hand}",
+     "start: l_hand, end: l_el_link}", "bones[3]", "runs backwards: its end, not its start"),
+    ("upper arm start and end swapped", "start: l_sho_roll_link, end: l_el_link}",
+     "start: l_el_link, end: l_sho_roll_link}", "bones[2]",
+     "runs backwards: LeftForeArm starts at its start"),
+    ("left upper arm on the right arm's links", "start: l_sho_roll_link, end: l_el_link}",
+     "start: r_sho_roll_link, end: r_el_link}", "bones[2]",
+     "LeftArm (r_sho_roll_link → r_el_link) lies on the robot's right"),
+    ("left forearm ending at the right hand", "start: l_el_link, end: l_hand}",
+     "start: l_el_link, end: r_hand}", "bones[3]", "lies on the robot's right"),
+    ("a bone that does not join its parent", "start: l_ankle_center, end: l_toe}",
+     "start: l_hip_center, end: l_toe}", "bones[8].start", "a limb's bones join end to start"),
 ]  # fmt: skip
 
 
@@ -190,3 +216,43 @@ def test_parse_from_text_and_frozen_poses(op3_text: str) -> None:
     with pytest.raises(ValueError, match="read-only"):
         config.init_pose[0] = 1.0
     np.testing.assert_array_equal(config.lower < config.upper, True)
+
+
+def test_numbers_written_as_yaml_1_2_does() -> None:
+    """1e-8 is a number (YAML 1.2; PyYAML's 1.1 rules read it as a string), and an unknown
+    optimizer option suggests the nearest known one."""
+    import yaml
+
+    from robot_retarget.optimize.settings import RetargetSettings
+
+    doc = yaml.load("a: 1e-8\nb: -4E+2\nc: 12\nd: e5\n", Loader=loader._ConfigLoader)
+    assert doc == {"a": 1e-8, "b": -400.0, "c": 12, "d": "e5"}
+    with pytest.raises(ConfigError, match=r"did you mean 'w_acceleration'\?"):
+        RetargetSettings.from_mapping({"w_acceleraton": 1.0})
+
+
+def test_protocol_1_baud_rates_follow_the_servos_formula() -> None:
+    from robot_retarget.robot.servo_models import baud_supported
+
+    for baud in (1_000_000, 500_000, 115_200, 57_600, 9_600, 3_000_000):
+        assert baud_supported(1.0, baud), baud
+    for baud in (1_500_000, 5_000_000, 0):
+        assert not baud_supported(1.0, baud), baud
+    assert baud_supported(2.0, 4_000_000)
+    assert not baud_supported(2.0, 500_000)
+
+
+def test_a_robot_folder_and_a_tilde_find_its_file(
+    tmp_path: Path, op3_text: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    folder = tmp_path / "my_op3"
+    folder.mkdir()
+    _write(folder, op3_text, name="my_op3.yaml")
+    assert load_robot_config(folder).source_path == str(folder / "my_op3.yaml")
+    monkeypatch.setenv("HOME", os.fspath(tmp_path))
+    assert load_robot_config("~/my_op3").source_path == str(folder / "my_op3.yaml")
+    monkeypatch.setenv(loader.CONFIG_DIR_ENV, "~")
+    assert load_robot_config("my_op3").source_path == str(folder / "my_op3.yaml")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ConfigError, match=r"a folder, without empty\.yaml in it"):
+        load_robot_config(tmp_path / "empty")

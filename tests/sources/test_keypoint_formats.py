@@ -166,3 +166,32 @@ def test_pairs_without_scores_are_refused(tmp_path: Path) -> None:
     path.write_text(json.dumps({"people": [{"keypoints": [[1, 2]] * 17}]}) + "\n")
     with pytest.raises(KeypointFormatError, match="keypoint_scores"):
         load_keypoints(path)
+
+
+def test_values_that_parse_but_mean_nothing_are_named(tmp_path: Path) -> None:
+    """Nested OpenPose triples, a MediaPipe 'presence' of null, and JSON's 1e999 (infinity) as
+    an image size or a frame rate: each a one-line error naming the file and the field."""
+    folder = _copy("openpose_body25", tmp_path)
+    bad = folder / "video_000000000000_keypoints.json"
+    bad.write_text(json.dumps({"people": [{"pose_keypoints_2d": [[1.0, 2.0, 0.9]] * 25}]}))
+    with pytest.raises(KeypointFormatError, match=r"one flat list .* shape \(25, 3\)"):
+        load_keypoints(folder)
+    path = _copy("mediapipe_pose.json", tmp_path)
+    doc = json.loads(path.read_text())
+    doc["frames"][0]["pose_landmarks"][0][3]["presence"] = None
+    path.write_text(json.dumps(doc))
+    with pytest.raises(KeypointFormatError, match=r"landmark 3: .*'presence'"):
+        load_keypoints(path)
+    doc = json.loads((FIXTURES / "mediapipe_pose.json").read_text())
+    path.write_text(json.dumps(doc).replace('"image_width": ', '"image_width": 1e999, "w": '))
+    with pytest.raises(KeypointFormatError, match=r"'image_width' .* got inf"):
+        load_keypoints(path)
+    path.write_text(json.dumps({**doc, "fps": 1}).replace('"fps": 1', '"fps": 1e999'))
+    with pytest.raises(KeypointFormatError, match="'fps' must be a positive finite number"):
+        load_keypoints(path)
+    lines = (FIXTURES / "coco17.jsonl").read_text().splitlines()
+    first = json.loads(lines[0])
+    jsonl = tmp_path / "inf.jsonl"
+    jsonl.write_text(json.dumps({**first, "fps": 1}).replace('"fps": 1', '"fps": 1e999') + "\n")
+    with pytest.raises(KeypointFormatError, match="frame 0: 'fps' must be a positive finite"):
+        load_keypoints(jsonl)

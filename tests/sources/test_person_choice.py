@@ -50,3 +50,30 @@ def test_one_wild_point_does_not_lose_the_person() -> None:
     for _ in range(3):
         assert tr.choose([(glitch, seen)]) == 0
     assert tr.choose([(body + 5.0, seen)]) == 0
+
+
+# A standing person facing the camera, COCO-17 order, pixels (about 430 px tall).
+_STANDING = np.array(
+    [
+        [320, 100], [328, 92], [312, 92], [338, 98], [302, 98],  # nose, eyes, ears
+        [370, 160], [270, 160], [380, 240], [260, 240], [385, 310], [255, 310],  # arms
+        [352, 300], [288, 300], [355, 410], [285, 410], [358, 520], [282, 520],  # legs
+    ],
+    dtype=float,
+)  # fmt: skip
+
+
+def test_a_body_that_comes_into_view_below_the_head_is_the_same_person() -> None:
+    """Head and shoulders first (a small box, its centre high), then the whole body in the
+    same pixels: the centre of all the points is far below, but over the points both frames
+    show the person has not moved. And the same person with a stranger beside them."""
+    head = np.zeros(17, dtype=bool)
+    head[:7] = True
+    whole = np.ones(17, dtype=bool)
+    tr = PersonTracker()
+    assert tr.choose([(_STANDING, head)]) == 0
+    assert [tr.choose([(_STANDING, whole)]) for _ in range(3)] == [0, 0, 0]
+    tr = PersonTracker()
+    stranger = (_STANDING + np.array([600.0, 200.0]), whole)
+    assert tr.choose([(_STANDING, head)]) == 0
+    assert tr.choose([stranger, (_STANDING, whole)]) == 1

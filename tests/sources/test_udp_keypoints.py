@@ -209,3 +209,38 @@ def test_a_glitched_wrist_is_gated_in_the_stream_as_in_the_clip_lifting() -> Non
     assert src.report_lines()[0].startswith(f"glitch gate: {len(glitches)} point(s)")
     lifted = lift_keypoints(seq, model, causal=True).local_quats
     np.testing.assert_allclose(np.stack(frames), lifted, atol=2e-6)
+
+
+def test_a_sender_restart_starts_the_stream_over() -> None:
+    """After a restart (sequence and clock back to 0) the frames are a fresh source's: the
+    old performer's place, the model's context and the camera fitted so far are forgotten,
+    so a performer elsewhere in the image is followed from the first packet."""
+    from robot_retarget.keypoints.demo_2d import demo_keypoints
+    from robot_retarget.motion.synthetic import demo_motion
+    from robot_retarget.runtime.agnostic2d import load_keypoint_model
+
+    model = load_keypoint_model()
+    seq = demo_keypoints(demo_motion(fps=30.0).frames(0, 60))
+
+    def packets(dx: float) -> list[bytes]:
+        out = []
+        for t in range(seq.num_frames):
+            person = np.concatenate([seq.xy[t] + (dx, 0.0), seq.confidence[t][:, None]], 1)
+            person[~seq.valid[t]] = 0.0
+            out.append(encode_keypoints(t, t / 30.0, [person]))
+        return out
+
+    def frames(src: UdpKeypointSource, data: list[bytes]) -> list[SourceFrame | None]:
+        return [src.handle_packet(d, 0.0) for d in data]
+
+    src = UdpKeypointSource(model, "127.0.0.1", 0, image_size=seq.image_size)
+    assert all(f is not None for f in frames(src, packets(500.0)))
+    after = frames(src, packets(-300.0))  # the sender restarts with the performer elsewhere
+    fresh = frames(
+        UdpKeypointSource(model, "127.0.0.1", 0, image_size=seq.image_size), packets(-300.0)
+    )
+    assert src.stats.dropped.get("no_person", 0) == 0
+    for a, b in zip(after, fresh, strict=True):
+        assert a is not None
+        assert b is not None
+        np.testing.assert_allclose(a.local_quats, b.local_quats, atol=1e-9)

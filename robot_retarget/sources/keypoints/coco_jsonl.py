@@ -16,6 +16,7 @@ caller's). A score is a confidence in [0, 1]; a point below the threshold is mis
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -94,9 +95,10 @@ def read_coco_jsonl(
                 )
             if index == 0 and rate is None and "fps" in obj:
                 rate = obj["fps"]
-                if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0:
+                number = isinstance(rate, (int, float)) and not isinstance(rate, bool)
+                if not number or not 0 < rate < math.inf:
                     raise KeypointFormatError(
-                        f"'fps' must be positive, got {rate!r}", path=path, frame=0
+                        f"'fps' must be a positive finite number, got {rate!r}", path=path, frame=0
                     )
             people = []
             for k, person in enumerate(people_of(obj)):

@@ -20,6 +20,7 @@ normalised x and y have different units.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +43,7 @@ _INDEX = np.array([_MEDIAPIPE[Coco(k).name] for k in range(NUM_KEYPOINTS)], dtyp
 
 def _size(doc: dict[str, Any], key: str, path: Path) -> float:
     value = doc.get(key)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
         raise KeypointFormatError(
             f"'{key}' must be the image size in pixels (a positive number), got {value!r}: "
             "MediaPipe's coordinates are normalised by it",
@@ -65,7 +66,8 @@ def _person(landmarks: object, w: float, h: float, path: Path, frame: int, k: in
             c = float(lm.get("visibility", 1.0)) * float(lm.get("presence", 1.0))
         except (TypeError, KeyError, ValueError, AttributeError):
             raise KeypointFormatError(
-                f"person {k}, landmark {i}: needs numeric 'x' and 'y' (and 'visibility')",
+                f"person {k}, landmark {i}: needs numeric 'x' and 'y' ('visibility' and "
+                f"'presence' numbers too where given), got {lm!r}"[:300],
                 path=path,
                 frame=frame,
             ) from None
@@ -95,8 +97,10 @@ def read_mediapipe_json(
         )
     w, h = _size(doc, "image_width", path), _size(doc, "image_height", path)
     rate = fps if fps is not None else doc.get("fps", 30.0)
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0:
-        raise KeypointFormatError(f"'fps' must be a positive number, got {rate!r}", path=path)
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < math.inf:
+        raise KeypointFormatError(
+            f"'fps' must be a positive finite number, got {rate!r}", path=path
+        )
     frames_doc = doc["frames"]
     if not isinstance(frames_doc, list) or not frames_doc:
         raise KeypointFormatError("'frames' must be a non-empty list", path=path)

@@ -84,7 +84,14 @@ def parse_openpose_people(
             raise KeypointFormatError(
                 f"person {k}: 'pose_keypoints_2d' holds non-numbers", path=path, frame=frame
             ) from None
-        if a.ndim != 1 or a.size % 3 or a.size // 3 not in LAYOUTS:
+        if a.ndim != 1:
+            raise KeypointFormatError(
+                f"person {k}: 'pose_keypoints_2d' must be one flat list of x, y, confidence "
+                f"values, got a nested list of shape {a.shape}",
+                path=path,
+                frame=frame,
+            )
+        if a.size % 3 or a.size // 3 not in LAYOUTS:
             raise KeypointFormatError(
                 f"person {k}: 'pose_keypoints_2d' has {a.size} values; expected 75 (BODY_25) "
                 "or 54 (COCO-18) x, y, confidence triples",

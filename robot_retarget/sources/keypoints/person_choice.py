@@ -3,7 +3,9 @@
 The rule: on the first frame with anyone in view, the person with the largest box (of their
 visible keypoints, the outermost tenth on each side left out) — usually the one nearest the
 camera. After that, the person whose centre (the median of their visible keypoints) is nearest
-the followed person's last centre, if it lies within half that box's diagonal; if nobody does,
+the followed person's last centre, if it lies within half that box's diagonal; both centres
+are taken over the keypoints seen in both frames (where at least two are), so a body that
+comes into view below its head and shoulders is still the same person; if nobody does,
 the frame counts as nobody seen (every point missing, never another person's points). After
 ``reacquire_frames`` such frames in a row (default 15, 0.5 s at 30 fps) the largest person is
 chosen again.
@@ -48,6 +50,18 @@ class PersonTracker:
         self._centre: FloatArray | None = None
         self._diagonal = 0.0
         self._lost = 0
+        self._last: tuple[FloatArray, BoolArray] | None = None  # the followed person's points
+
+    def _distance(self, xy: FloatArray, valid: BoolArray, centre: FloatArray) -> float:
+        """How far a candidate is from the followed person's last frame, over the points both
+        show (a centre of other points would move as more of the body comes into view)."""
+        assert self._centre is not None
+        assert self._last is not None
+        last_xy, last_valid = self._last
+        both = valid & last_valid
+        if int(both.sum()) >= 2:
+            return float(np.linalg.norm(np.median(xy[both], 0) - np.median(last_xy[both], 0)))
+        return float(np.linalg.norm(centre - self._centre))
 
     def choose(self, people: list[tuple[FloatArray, BoolArray]]) -> int | None:
         """``people``: (xy (K, 2), valid (K,)) per detected person; the followed one's index."""
@@ -59,14 +73,14 @@ class PersonTracker:
         if self._centre is None:
             i, (centre, _area, diag) = max(candidates, key=lambda ib: ib[1][1])
         else:
-            last = self._centre
-            i, (centre, _area, diag) = min(
-                candidates, key=lambda ib: float(np.linalg.norm(ib[1][0] - last))
-            )
-            if float(np.linalg.norm(centre - last)) > 0.5 * self._diagonal:
+            dist = {i: self._distance(*people[i], b[0]) for i, b in candidates}
+            i, (centre, _area, diag) = min(candidates, key=lambda ib: dist[ib[0]])
+            if dist[i] > 0.5 * self._diagonal:
                 self._miss()
                 return None
         self._centre, self._diagonal, self._lost = centre, max(diag, 1e-6), 0
+        xy, valid = people[i]
+        self._last = (np.array(xy, dtype=np.float64), np.array(valid, dtype=bool))
         return i
 
     def _miss(self) -> None:

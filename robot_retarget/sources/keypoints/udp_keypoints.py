@@ -11,7 +11,8 @@ keypoint model (Agnostic2DStep) and, unless
 ``image_planes=False``, the image's planes with the camera fitted on the frames so far
 (robot_retarget.keypoints.online_reprojection); the frame delivered is the model's 22 canonical
 rotations on the reference skeleton, the root held at its standing height
-(robot_retarget.keypoints.lift). A packet in which fewer than 6 of the 12 body points are seen
+(robot_retarget.keypoints.lift). A sender restart (SequenceFilter's rule) starts all of that
+over. A packet in which fewer than 6 of the 12 body points are seen
 (nobody followed in view) delivers no frame (counted as ``no_person``): the control loop holds,
 then goes to the safe pose, as when a sender falls silent.
 """
@@ -114,6 +115,16 @@ class UdpKeypointSource(UdpDatagramSource):
             f"elevation, focal {camera.focal_px:.0f} px, {principal}",
         )
 
+    def _new_stream(self) -> None:
+        """A sender restart: maybe another camera, another performer. Nothing of the old
+        stream is carried over (the person followed, the gate's last points, the model's
+        context and pooled codes, the camera fitted so far)."""
+        self._tracker.reset()
+        self._gate.reset()
+        self._step.reset()
+        if self._planes is not None:
+            self._planes.reset()
+
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
         """Decode, check and lift one datagram; queue and return the frame, or count the drop."""
         self.stats.received += 1
@@ -124,8 +135,11 @@ class UdpKeypointSource(UdpDatagramSource):
             return None
         if not self._authorised(pkt.token):
             return None
+        restarts = self._filter.restarts
         if not self._filter.accept(pkt.seq, pkt.t_s):
             return None
+        if self._filter.restarts != restarts:
+            self._new_stream()
         chosen = self._tracker.choose([(xy, v) for xy, _c, v in pkt.people])
         if chosen is None:  # nobody followed in view: every point missing, nothing guessed
             xy = np.full((NUM_KEYPOINTS, 2), np.nan)
