@@ -486,6 +486,13 @@ class _Builder:
         if direction not in (-1, 1):
             raise self.error(f"{key}.servo.direction", f"got {direction}", allowed="-1, 1")
         zero_offset = self.number(servo.get("zero_offset", 0.0), f"{key}.servo.zero_offset")
+        if abs(zero_offset) > math.pi:
+            raise self.error(
+                f"{key}.servo.zero_offset",
+                f"{zero_offset:g} rad is more than half a turn: radians, not degrees or ticks "
+                "(!deg converts degrees)",
+                allowed="−π … π rad",
+            )
 
         lower = self.number(limits["lower"], f"{key}.limits.lower")
         upper = self.number(limits["upper"], f"{key}.limits.upper")

@@ -82,6 +82,9 @@ MISTAKES = [
     ("profile velocity above every servo's speed", "profile_velocity_rad_s: 4.0",
      "profile_velocity_rad_s: 40", "hardware.profile_velocity_rad_s",
      "would limit nothing"),
+    ("zero offset in degrees", "direction: 1, zero_offset: 0.0}",
+     "direction: 1, zero_offset: 10}",
+     "joints[0].servo.zero_offset", "more than half a turn"),
     ("root link no joint hangs from", "root_link: body_link", "root_link: base_link",
      "root_link", "no joint hangs from 'base_link'"),
     # Geometry at the zero pose (robot/bone_geometry.py): each a robot that would stand still.
