@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from robot_retarget.errors import RetargetError
@@ -54,8 +55,22 @@ def retarget(
     loaded model; default: the shipped default — its numpy runtime, no torch needed), at ``fps``
     (default: the robot's control rate). ``foot_lock``: run the residual network's foot lock
     (off on the robot by default, as in ``convert``)."""
-    if fps is not None and not (math.isfinite(fps) and fps > 0.0):
-        raise RetargetError(f"fps must be a positive number of frames per second, got {fps}")
+    number = isinstance(fps, int | float) and not isinstance(fps, bool)
+    if fps is not None and not (number and math.isfinite(fps) and fps > 0.0):
+        raise RetargetError(f"fps must be a positive number of frames per second, got {fps!r}")
+    if not isinstance(clip_or_motion, HumanMotion | str | os.PathLike):
+        raise RetargetError(
+            f"clip_or_motion must be a BVH path or a HumanMotion, got {type(clip_or_motion)!r}"
+        )
+    if not isinstance(robot, RobotConfig | str | os.PathLike):
+        raise RetargetError(
+            f"robot must be a name (e.g. 'op3'), a YAML path or a RobotConfig, got {robot!r}"
+        )
+    if not isinstance(clip_or_motion, HumanMotion) and Path(clip_or_motion).is_dir():
+        raise RetargetError(
+            f"{os.fspath(clip_or_motion)}: a folder; retarget takes one clip (convert converts "
+            "a folder)"
+        )
     motion = (
         clip_or_motion
         if isinstance(clip_or_motion, HumanMotion)

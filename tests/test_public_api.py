@@ -60,9 +60,18 @@ def test_retarget_takes_a_loaded_motion_robot_and_model() -> None:
 
 
 def test_api_errors_are_retarget_errors_that_name_what_is_wrong(tmp_path: Path) -> None:
-    for fps in (0.0, -5.0, float("nan")):
+    for fps in (0.0, -5.0, float("nan"), "30", True):
         with pytest.raises(rr.RetargetError, match="fps must be a positive number"):
-            rr.retarget(CLIP, fps=fps)
+            rr.retarget(CLIP, fps=fps)  # type: ignore[arg-type]
+    with pytest.raises(rr.RetargetError, match="robot must be a name"):
+        rr.retarget(CLIP, robot=None)  # type: ignore[arg-type]
+    with pytest.raises(rr.RetargetError, match="a folder; retarget takes one clip"):
+        rr.retarget(tmp_path)
+    empty = tmp_path / "empty.bvh"
+    empty.write_bytes(b"")
+    with pytest.raises(rr.RetargetError, match="the file is empty"):
+        rr.retarget(empty)
+    empty.unlink()
     traj = rr.retarget(CLIP).trajectory
     missing = tmp_path / "no" / "x.npz"
     with pytest.raises(rr.RetargetError, match="create it first"):

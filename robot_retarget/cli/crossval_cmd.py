@@ -28,7 +28,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         action="append",
         required=True,
         metavar="NAME",
-        help="network to train per fold (nkn, pmnet, residual, tdcn); repeatable; copy and "
+        help="network to train per fold (nkn, pmnet, residual, san, tdcn); repeatable; copy and "
         "copy-scaled are always scored",
     )
     add_data_argument(parser)
@@ -72,8 +72,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     parser.add_argument("--device", default="cpu", help="training device: cpu or cuda")
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
-    parser.add_argument("--json", action="store_true", help="print crossval.json's content")
-    parser.add_argument("--markdown", action="store_true", help="print Markdown tables")
+    output = parser.add_mutually_exclusive_group()
+    output.add_argument("--json", action="store_true", help="print crossval.json's content")
+    output.add_argument("--markdown", action="store_true", help="print Markdown tables")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
@@ -85,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.evaluation.folds import DEFAULT_FOLDS, load_folds
     from robot_retarget.nn.train import TrainProgress
 
+    _check_arguments(args)
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     config = CrossvalConfig(
@@ -134,3 +136,24 @@ def run(args: argparse.Namespace) -> int:
             f"\nper-fold numbers, train commands, git commit, data hash: {args.out}/crossval.json"
         )
     return 0
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    """Before anything is written to --out: counts that must be positive, the robots named,
+    and an --out that can be a folder (a refused run must leave nothing to delete)."""
+    from pathlib import Path
+
+    from robot_retarget.cli.train_cmd import TrainArgumentError
+    from robot_retarget.robot.loader import load_robot_config
+
+    for option in ("steps", "batch_size", "window", "val_every", "checkpoint_every", "threads"):
+        value = getattr(args, option)
+        if value is not None and value < 1:
+            flag = "--" + option.replace("_", "-")
+            raise TrainArgumentError(f"{flag} must be at least 1, got {value}")
+    for robot in args.robot or []:
+        if robot != "none":
+            load_robot_config(robot)  # a ConfigError naming the robots there are
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise TrainArgumentError(f"--out {out}: a file, not a folder; name a folder for the run")

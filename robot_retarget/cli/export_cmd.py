@@ -12,6 +12,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from robot_retarget.cli.output_paths import Output, check_outputs
+from robot_retarget.errors import ModelLoadError
+
 NAME = "export"
 HELP = "Export a trained checkpoint to its numpy runtime (.npz): stream without torch."
 
@@ -34,23 +37,26 @@ def run(args: argparse.Namespace) -> int:
     )
     from robot_retarget.nn.export import export_runtime
 
-    # A training run folder stands for its best checkpoint (either kind of model).
-    sources = [
-        str(Path(c) / "best.pt") if (Path(c) / "best.pt").is_file() else c for c in args.checkpoint
-    ]
+    sources = [_checkpoint_file(c) for c in args.checkpoint]
+    if args.out is not None:
+        check_outputs(
+            [Output("--out", args.out, (".npz",))],
+            inputs=[Path(c) for c in sources if Path(c).is_file()],
+            force=args.force,
+        )
     keypoint = [is_keypoint_checkpoint(c) for c in sources]
     if len(sources) > 1:
         missing = [c for c in sources if not Path(c).is_file()]
         if missing:
-            raise SystemExit(f"export: no such checkpoint file: {', '.join(missing)}")
+            raise ModelLoadError(f"no such checkpoint file: {', '.join(missing)}")
         if not all(keypoint):
             others = ", ".join(c for c, k in zip(sources, keypoint, strict=True) if not k)
-            raise SystemExit(
-                f"export: only agnostic2d checkpoints make an ensemble; not one: {others} "
+            raise ModelLoadError(
+                f"only agnostic2d checkpoints make an ensemble; not one: {others} "
                 "(export a retargeting network's checkpoint on its own)"
             )
         if args.out is None:
-            raise SystemExit("export: an ensemble of several checkpoints needs --out FILE.npz")
+            raise ModelLoadError("an ensemble of several checkpoints needs --out FILE.npz")
     if all(keypoint):  # the 2D keypoint model (agnostic2d), one or an ensemble
         paths = [Path(c) for c in sources]
         written = export_keypoint_checkpoint(paths, args.out, force=args.force)
@@ -62,3 +68,25 @@ def run(args: argparse.Namespace) -> int:
     out, architecture = export_runtime(sources[0], args.out, force=args.force)
     print(f"exported {sources[0]} ({architecture}) → {out} ({out.stat().st_size} bytes)")
     return 0
+
+
+def _checkpoint_file(given: str) -> str:
+    """A run folder stands for its best checkpoint (either kind of model); a runtime file, a
+    folder without one or a path that names no file is a one-line error. A bare name (a
+    built-in or shipped model) passes through to the loader."""
+    path = Path(given)
+    if path.is_dir():
+        if (path / "best.pt").is_file():
+            return str(path / "best.pt")
+        raise ModelLoadError(
+            f"{given}: a folder without best.pt (a training run folder holds one after its "
+            "first validation); name a .pt checkpoint"
+        )
+    if path.suffix == ".npz":
+        raise ModelLoadError(
+            f"{given}: a numpy runtime file, already exported (convert, stream and bench use it "
+            "as --model); export reads a .pt checkpoint"
+        )
+    if not path.exists() and (path.suffix == ".pt" or len(path.parts) > 1):
+        raise ModelLoadError(f"{given}: no such checkpoint file")
+    return given

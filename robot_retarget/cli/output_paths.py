@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import shlex
 import tempfile
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -115,7 +116,8 @@ def _check_folder(folder: Path, option: str, create: bool, probed: set[Path]) ->
     if not folder.exists():
         if not create:
             raise OutputPathError(
-                f"no such folder; create it first (mkdir -p {folder}) or choose another path",
+                f"no such folder; create it first (mkdir -p {shlex.quote(str(folder))}) or "
+                "choose another path",
                 path=folder,
                 option=option,
             )

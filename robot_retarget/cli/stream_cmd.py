@@ -30,6 +30,7 @@ from robot_retarget.cli.fallback_warning import fallback_warning
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.cli.image_size_arg import image_size_argument
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
+from robot_retarget.cli.tcp_port_arg import tcp_port_argument
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
 if TYPE_CHECKING:
@@ -128,7 +129,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "clips, watchdog state, latency (needs the [view] extra)",
     )
     parser.add_argument(
-        "--view-port", type=int, default=8080, help="--view: port (the next free one if busy)"
+        "--view-port",
+        type=tcp_port_argument,
+        default=8080,
+        help="--view: port (the next free one if busy)",
     )
     parser.add_argument(
         "--view-host",

@@ -14,6 +14,8 @@ import threading
 import webbrowser
 from pathlib import Path
 
+from robot_retarget.cli.tcp_port_arg import tcp_port_argument
+
 NAME = "view"
 HELP = "Show a trajectory and its clip in a browser."
 
@@ -28,7 +30,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--host", default="127.0.0.1", help="address to serve on")
     parser.add_argument(
-        "--port", type=int, default=8080, help="port (the next free one if it is busy)"
+        "--port",
+        type=tcp_port_argument,
+        default=8080,
+        help="port (the next free one if it is busy)",
     )
     parser.add_argument(
         "--no-browser", action="store_true", help="serve only; do not open a browser"

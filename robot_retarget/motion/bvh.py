@@ -560,6 +560,10 @@ def read_bvh(path: str | Path, *, max_frames: int | None = None) -> BvhClip:
         raw = p.read_bytes()
     except OSError as exc:
         raise MotionFormatError(f"cannot read the file: {exc.strerror or exc}", path=p) from None
+    if not raw.strip():
+        raise MotionFormatError(
+            f"the file is empty ({len(raw)} bytes): a BVH file starts with HIERARCHY", path=p
+        )
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:

@@ -97,6 +97,14 @@ def load_model(name_or_path: str | Path = DEFAULT_MODEL, *, device: str = "cpu")
             path = candidate
         elif candidate.is_dir() and (candidate / "best.pt").is_file():
             path = candidate / "best.pt"  # a training run's folder
+    if path is not None and path.suffix == ".npz":
+        raise ModelLoadError(
+            f"{text}: a numpy runtime file (convert, stream and the API take it as --model); "
+            "this command reads the .pt checkpoint it was exported from",
+            model=text,
+        )
+    if path is None and (Path(text).suffix == ".pt" or len(Path(text).parts) > 1):
+        raise ModelLoadError(f"{text}: no such checkpoint file or run folder", model=text)
     if path is None:
         raise ModelLoadError(
             f"no model {text!r}: not a built-in model, a shipped checkpoint or a checkpoint "

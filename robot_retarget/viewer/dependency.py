@@ -7,7 +7,7 @@ from types import ModuleType
 
 from robot_retarget.errors import RetargetError
 
-INSTALL_HINT = 'pip install "robot-retarget[view]"'
+INSTALL_HINT = 'pip install "robot-retarget[view]" (from a checkout: pip install -e ".[view]")'
 
 
 class ViewerDependencyError(RetargetError):

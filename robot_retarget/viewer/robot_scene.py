@@ -8,12 +8,14 @@ imports viser.
 from __future__ import annotations
 
 import contextlib
+import socket
 import sys
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from robot_retarget.errors import RetargetError
 from robot_retarget.viewer.dependency import require_viser
 
 ROBOT_RGB: tuple[int, int, int] = (255, 110, 0)  # orange: the browser test looks for it
@@ -26,8 +28,28 @@ def start_server(host: str, port: int) -> Any:
     prints a banner when it starts and a line when it stops: they go to stderr, so stdout stays
     the program's own (``bench --json`` prints JSON lines there)."""
     viser = require_viser()
+    _check_address(host)
     with contextlib.redirect_stdout(sys.stderr):
         return viser.ViserServer(host=host, port=port, verbose=False)
+
+
+def _check_address(host: str) -> None:
+    """An address this machine cannot serve on is a one-line error here: viser would fail in
+    its own thread and leave the page silently unserved."""
+    try:
+        infos = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)
+        family, kind, proto, _name, address = infos[0]
+        with socket.socket(family, kind, proto) as probe:
+            probe.bind(address)
+    except OSError as exc:
+        raise ViewerServeError(
+            f"cannot serve the viewer on {host!r} ({exc.strerror or exc}): use an address of "
+            "this machine (127.0.0.1, or 0.0.0.0 for every interface)"
+        ) from None
+
+
+class ViewerServeError(RetargetError):
+    """The viewer's address cannot be served on."""
 
 
 def stop_server(server: Any) -> None:

@@ -79,3 +79,41 @@ def test_errors_are_one_line(
     assert message in err
     assert "Traceback" not in err
     assert not (tmp_path / "cv").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (("--steps", "0"), "--steps must be at least 1, got 0"),
+        (("--batch-size", "0"), "--batch-size must be at least 1, got 0"),
+        (("--threads", "0"), "--threads must be at least 1, got 0"),
+        (("--robot", "op4"), "no robot config named 'op4'"),
+    ],
+)
+def test_arguments_are_checked_before_the_run_folder_is_written(
+    mocap: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    extra: tuple[str, str],
+    message: str,
+) -> None:
+    """A typo must not leave a crossval.json behind that --resume then refuses."""
+    argv = _argv(mocap, tmp_path / "cv")
+    option, value = extra
+    if option in argv:
+        argv[argv.index(option) + 1] = value
+    else:
+        argv += [option, value]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ")
+    assert message in err
+    assert not (tmp_path / "cv").exists()
+
+
+def test_out_may_not_be_a_file(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "cv").write_text("")
+    assert main(_argv(mocap, tmp_path / "cv")) == 1
+    assert "a file, not a folder" in capsys.readouterr().err

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from robot_retarget.cli import export_cmd
-from robot_retarget.errors import ModelLoadError, MotionFormatError
+from robot_retarget.errors import ModelLoadError, RetargetError
 from robot_retarget.runtime.loader import CHECKPOINT_DIR
 from robot_retarget.runtime.model import load_runtime
 
@@ -25,10 +25,26 @@ def test_export_writes_a_runtime_that_loads(tmp_path: Path) -> None:
     model = load_runtime(out)
     assert model.architecture == "residual"
     assert len(model.checkpoint_sha256) == 64
-    with pytest.raises(MotionFormatError, match="--force"):
+    with pytest.raises(RetargetError, match="--force"):
         export_cmd.run(_args(str(CHECKPOINT_DIR / "default.pt"), "--out", str(out)))
-    with pytest.raises(MotionFormatError, match=r"\.npz"):
+    with pytest.raises(RetargetError, match=r"\.npz"):
         export_cmd.run(_args(str(CHECKPOINT_DIR / "default.pt"), "--out", str(tmp_path / "x.pt")))
+
+
+def test_what_export_cannot_read_or_write_is_named_before_any_work(tmp_path: Path) -> None:
+    """A runtime file, a folder without best.pt, a missing file, an --out folder that does not
+    exist: one-line errors, nothing written."""
+    default = str(CHECKPOINT_DIR / "default.pt")
+    cases = [
+        ((str(CHECKPOINT_DIR / "default.npz"),), "a numpy runtime file, already exported"),
+        ((str(tmp_path),), "a folder without best.pt"),
+        ((str(tmp_path / "gone.pt"),), "no such checkpoint file"),
+        ((default, "--out", str(tmp_path / "no" / "x.npz")), r"no such folder; create it first"),
+    ]
+    for args, message in cases:
+        with pytest.raises(RetargetError, match=message):
+            export_cmd.run(_args(*args))
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_built_in_models_need_no_export() -> None:
@@ -60,9 +76,10 @@ def test_several_keypoint_checkpoints_export_as_one_ensemble(tmp_path: Path) -> 
     (run / "best.pt").write_bytes(Path(pts[1]).read_bytes())
     assert export_cmd.run(_args(str(run), "--out", str(tmp_path / "one.npz"))) == 0
     assert len(load_agnostic2d(tmp_path / "one.npz").members) == 1
-    with pytest.raises(SystemExit, match=r"no such checkpoint file: .*nope\.pt"):
-        export_cmd.run(_args(pts[0], str(tmp_path / "nope.pt"), "--out", str(out)))
-    with pytest.raises(SystemExit, match="needs --out"):
+    other = str(tmp_path / "other.npz")
+    with pytest.raises(ModelLoadError, match=r"nope\.pt: no such checkpoint file"):
+        export_cmd.run(_args(pts[0], str(tmp_path / "nope.pt"), "--out", other))
+    with pytest.raises(ModelLoadError, match="needs --out"):
         export_cmd.run(_args(*pts))
-    with pytest.raises(SystemExit, match=r"only agnostic2d checkpoints.*default\.pt"):
-        export_cmd.run(_args(pts[0], str(CHECKPOINT_DIR / "default.pt"), "--out", str(out)))
+    with pytest.raises(ModelLoadError, match=r"only agnostic2d checkpoints.*default\.pt"):
+        export_cmd.run(_args(pts[0], str(CHECKPOINT_DIR / "default.pt"), "--out", other))

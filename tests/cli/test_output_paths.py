@@ -82,6 +82,8 @@ def test_existing_outputs_need_force(tmp_path: Path) -> None:
 def test_folders_must_exist_and_be_writable(tmp_path: Path, read_only_dir: Path) -> None:
     with pytest.raises(OutputPathError, match=r"no such folder; create it first \(mkdir -p"):
         check_outputs([Output("--record", tmp_path / "missing" / "r.npz")])
+    with pytest.raises(OutputPathError, match=r"\(mkdir -p '.*/my out'\)"):  # pastes as one path
+        check_outputs([Output("--out", tmp_path / "my out" / "r.npz")])
     with pytest.raises(OutputPathError, match="not writable"):
         check_outputs([Output("--record", read_only_dir / "r.npz")])
     # A folder output may be created, if its nearest existing parent is writable.

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from robot_retarget.sources.keypoints.person_choice import PersonTracker
@@ -77,3 +79,18 @@ def test_a_body_that_comes_into_view_below_the_head_is_the_same_person() -> None
     stranger = (_STANDING + np.array([600.0, 200.0]), whole)
     assert tr.choose([(_STANDING, head)]) == 0
     assert tr.choose([stranger, (_STANDING, whole)]) == 1
+
+
+def test_one_frame_of_points_collapsed_onto_a_pixel_does_not_lose_the_person() -> None:
+    """An estimator's failure puts every point on one pixel (a box of no size) for a frame:
+    the person is still followed in it and in the next (the larger box sets the reach), and
+    points at 1e200 px are far away, without a numpy warning."""
+    whole = np.ones(17, dtype=bool)
+    tr = PersonTracker()
+    assert tr.choose([(_STANDING, whole)]) == 0
+    assert tr.choose([(np.full((17, 2), 330.0), whole)]) == 0
+    assert tr.choose([(_STANDING, whole)]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert tr.choose([(np.full((17, 2), 1e200), whole)]) is None
+        assert tr.choose([(_STANDING, whole)]) == 0

@@ -3,7 +3,8 @@
 The rule: on the first frame with anyone in view, the person with the largest box (of their
 visible keypoints, the outermost tenth on each side left out) — usually the one nearest the
 camera. After that, the person whose centre (the median of their visible keypoints) is nearest
-the followed person's last centre, if it lies within half that box's diagonal; both centres
+the followed person's last centre, if it lies within half that box's diagonal (or of its own
+box, if that is larger); both centres
 are taken over the keypoints seen in both frames (where at least two are), so a body that
 comes into view below its head and shoulders is still the same person; if nobody does,
 the frame counts as nobody seen (every point missing, never another person's points). After
@@ -36,7 +37,8 @@ def _box(xy: FloatArray, valid: BoolArray) -> tuple[FloatArray, float, float] | 
     hi = np.percentile(pts, 100.0 - TRIM_PERCENT, axis=0)
     size = hi - lo
     centre: FloatArray = np.median(pts, axis=0)
-    return centre, float(size[0] * size[1]), float(np.hypot(size[0], size[1]))
+    with np.errstate(over="ignore"):  # a glitch at 1e200 px: an infinite area, no warning
+        return centre, float(size[0] * size[1]), float(np.hypot(size[0], size[1]))
 
 
 class PersonTracker:
@@ -73,9 +75,12 @@ class PersonTracker:
         if self._centre is None:
             i, (centre, _area, diag) = max(candidates, key=lambda ib: ib[1][1])
         else:
-            dist = {i: self._distance(*people[i], b[0]) for i, b in candidates}
+            with np.errstate(over="ignore", invalid="ignore"):  # 1e200 px: far, not a warning
+                dist = {i: self._distance(*people[i], b[0]) for i, b in candidates}
             i, (centre, _area, diag) = min(candidates, key=lambda ib: dist[ib[0]])
-            if dist[i] > 0.5 * self._diagonal:
+            # The larger of the two boxes sets the reach: one frame of points collapsed onto
+            # a pixel (an estimator's failure) must not shrink it to nothing for the next.
+            if not dist[i] <= 0.5 * max(self._diagonal, diag):
                 self._miss()
                 return None
         self._centre, self._diagonal, self._lost = centre, max(diag, 1e-6), 0
