@@ -237,6 +237,10 @@ def _check_options_fit_input(
             f"--canonical-input: for BVH input read by a skeleton-aware model, and {src} is 2D "
             "keypoints (lifted onto the canonical joints already): drop it"
         )
+    elif args.keypoint_model is not None:
+        from robot_retarget.runtime.agnostic2d import keypoint_model_path
+
+        keypoint_model_path(args.keypoint_model)  # a typo is one error, not one per clip
     if folder and args.out.suffix.lower() in _FORMATS:
         raise RetargetError(
             f"--out {args.out}: a folder of clips is written to a folder of files, not to one "

@@ -37,7 +37,13 @@ def export_runtime(
     if target.suffix != ".npz":
         raise MotionFormatError("the runtime file must end in .npz", path=target)
     if target.exists() and not force:
-        raise MotionFormatError("already exists; pass --force to replace it", path=target)
+        made_by_train = out is None and target.name == "best.npz"
+        raise MotionFormatError(
+            "already exists"
+            + (" (train writes each run's best.npz itself)" if made_by_train else "")
+            + "; pass --force to replace it, or --out to write another file",
+            path=target,
+        )
     digest = hashlib.sha256(loaded.path.read_bytes()).hexdigest()
     stem = loaded.path.stem if loaded.name == str(loaded.path) else loaded.name
     runtime = type(runtime)(**{**runtime.__dict__, "name": stem, "checkpoint_sha256": digest})

@@ -541,5 +541,17 @@ def load_keypoint_model(
     shipped one for the use (``whole_clip``: ``convert``'s, else ``stream``'s)."""
     if name_or_path is None:
         name_or_path = CLIP_MODEL_NAME if whole_clip else ARCHITECTURE
+    return load_agnostic2d(keypoint_model_path(name_or_path))
+
+
+def keypoint_model_path(name_or_path: str | os.PathLike[str]) -> Path:
+    """The file a keypoint model's name or path stands for; ModelLoadError naming the shipped
+    ones if it is neither (``convert`` asks before any clip is read)."""
     shipped = {ARCHITECTURE: SHIPPED_KEYPOINT_MODEL, CLIP_MODEL_NAME: SHIPPED_CLIP_KEYPOINT_MODEL}
-    return load_agnostic2d(shipped.get(str(name_or_path), name_or_path))
+    path = Path(shipped.get(os.fspath(name_or_path), name_or_path))
+    if not path.is_file():
+        raise ModelLoadError(
+            f"no keypoint model {os.fspath(name_or_path)!r}: not {ARCHITECTURE} or "
+            f"{CLIP_MODEL_NAME} (the shipped ones) nor a runtime .npz file"
+        )
+    return path

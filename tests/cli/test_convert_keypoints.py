@@ -140,3 +140,16 @@ def test_convert_reports_the_camera_it_estimated(tmp_path: Path, capsys: object)
     err = capsys.readouterr().err  # type: ignore[attr-defined]
     assert f"camera estimated at {estimates[-1]:.0f}° elevation" in err
     assert load_keypoint_motion(src, image_planes=False).camera is None
+
+
+def test_a_keypoint_model_that_does_not_exist_is_named_before_any_clip(tmp_path: Path) -> None:
+    import pytest
+
+    from robot_retarget.errors import ModelLoadError
+
+    with pytest.raises(ModelLoadError, match="no keypoint model 'nosuch': not agnostic2d"):
+        _run(
+            str(FIXTURES / "openpose_body25"), "--out", str(tmp_path / "x"),
+            "--keypoint-model", "nosuch",
+        )  # fmt: skip
+    assert not (tmp_path / "x").exists()

@@ -85,7 +85,7 @@ def read_coco_jsonl(
                 obj = json.loads(line)
             except json.JSONDecodeError as exc:
                 raise KeypointFormatError(
-                    f"not a JSON object ({exc})", path=path, frame=index
+                    f"not a JSON object ({exc.msg} at column {exc.colno})", path=path, frame=index
                 ) from None
             if not isinstance(obj, dict) or not isinstance(people_of(obj), list):
                 raise KeypointFormatError(
