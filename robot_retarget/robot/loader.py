@@ -207,7 +207,11 @@ def _scalar_number(loader: _ConfigLoader, node: yaml.ScalarNode) -> float:
         ) from None
 
 
-def _unit_tag(scale: float) -> Callable[[_ConfigLoader, yaml.Node], Any]:
+class _Speed(float):
+    """A value written with a speed's unit tag (!rpm): no angle."""
+
+
+def _unit_tag(scale: float, kind: type[float] = float) -> Callable[[_ConfigLoader, yaml.Node], Any]:
     def construct(loader: _ConfigLoader, node: yaml.Node) -> Any:
         if isinstance(node, yaml.ScalarNode):
             values: list[Any] = [_scalar_number(loader, node)]
@@ -223,7 +227,7 @@ def _unit_tag(scale: float) -> Callable[[_ConfigLoader, yaml.Node], Any]:
                 raise yaml.constructor.ConstructorError(
                     None, None, f"{node.tag} needs numbers, got {v!r}", node.start_mark
                 )
-            scaled.append(float(v) * scale)
+            scaled.append(kind(float(v) * scale))
         return scaled[0] if isinstance(node, yaml.ScalarNode) else scaled
 
     return construct
@@ -241,7 +245,7 @@ _ConfigLoader.add_implicit_resolver(
     list("-+0123456789"),
 )
 _ConfigLoader.add_constructor("!deg", _unit_tag(math.pi / 180.0))
-_ConfigLoader.add_constructor("!rpm", _unit_tag(RPM_TO_RAD_S))
+_ConfigLoader.add_constructor("!rpm", _unit_tag(RPM_TO_RAD_S, _Speed))
 
 
 # ----------------------------------------------------------------------------- validation
@@ -291,6 +295,12 @@ class _Builder:
         if not math.isfinite(out):
             raise self.error(key, f"must be finite, got {out}")
         return out
+
+    def angle(self, value: Any, key: str) -> float:
+        """A number that is an angle (a limit, an offset, a pose): not written as a speed."""
+        if isinstance(value, _Speed):
+            raise self.error(key, "is an angle, written with !rpm (a speed); use !deg or radians")
+        return self.number(value, key)
 
     def positive(self, value: Any, key: str) -> float:
         out = self.number(value, key)
@@ -485,7 +495,7 @@ class _Builder:
         direction = self.integer(servo.get("direction", 1), f"{key}.servo.direction")
         if direction not in (-1, 1):
             raise self.error(f"{key}.servo.direction", f"got {direction}", allowed="-1, 1")
-        zero_offset = self.number(servo.get("zero_offset", 0.0), f"{key}.servo.zero_offset")
+        zero_offset = self.angle(servo.get("zero_offset", 0.0), f"{key}.servo.zero_offset")
         if abs(zero_offset) > math.pi:
             raise self.error(
                 f"{key}.servo.zero_offset",
@@ -494,8 +504,8 @@ class _Builder:
                 allowed="−π … π rad",
             )
 
-        lower = self.number(limits["lower"], f"{key}.limits.lower")
-        upper = self.number(limits["upper"], f"{key}.limits.upper")
+        lower = self.angle(limits["lower"], f"{key}.limits.lower")
+        upper = self.angle(limits["upper"], f"{key}.limits.upper")
         if lower >= upper:
             raise self.error(
                 f"{key}.limits.lower",
@@ -658,7 +668,7 @@ class _Builder:
         m = self.mapping(value, key, names)
         out = np.empty(len(joints))
         for i, j in enumerate(joints):
-            q = self.number(m[j.name], f"{key}.{j.name}")
+            q = self.angle(m[j.name], f"{key}.{j.name}")
             if not j.lower_rad <= q <= j.upper_rad:
                 raise self.error(
                     f"{key}.{j.name}",
