@@ -5,6 +5,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from types import TracebackType
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
 
@@ -35,6 +36,13 @@ class JointBackend(ABC):
     @abstractmethod
     def connected(self) -> bool:
         """Whether connect() succeeded and disconnect() has not run since."""
+
+    @property
+    def position_quantum_rad(self) -> FloatArray | None:
+        """(J,) the resolution commands are rounded to on the way out (a servo tick), or None
+        where they are sent as they are. The SafetyLayer keeps that much under the step bound,
+        so that the rounding cannot take a step past ``v_max · dt``."""
+        return None
 
     def __enter__(self) -> JointBackend:
         self.connect()

@@ -85,6 +85,9 @@ class NotConnectedError(HardwareError):
 
 # Rounding slack for the joint-limit check: commands come from float64 math on the limits.
 _LIMIT_TOL_RAD = 1e-9
+_REST_TOL_RAD = 0.02
+"""A joint found this far past a limit before torque on (1.1°: a few ticks of sag onto a
+stop) is held at the limit; farther is refused (the config or the robot is wrong)."""
 
 
 @dataclass
@@ -409,12 +412,31 @@ class DynamixelBackend(JointBackend):
 
     def _enable_torque_at_present(self) -> None:
         state = self._read_state_raw()
-        ticks = self.units.to_ticks(state.q)
+        lower, upper = self._lower - _REST_TOL_RAD, self._upper + _REST_TOL_RAD
+        outside = (state.q < lower) | (state.q > upper)
+        if np.any(outside):
+            # Torque on would hold the joint there (goal := present), past its limit, and the
+            # ramp would start from it: nothing is written.
+            joints = [j for j, bad in zip(self.config.joints, outside, strict=True) if bad]
+            where = ", ".join(
+                f"{j.name} at {q:.3f} rad (limits {j.lower_rad:.3f} … {j.upper_rad:.3f})"
+                for j, q in zip(joints, state.q[outside], strict=True)
+            )
+            raise UnsafeCommandError(
+                f"joint(s) outside their limits before torque on: {where}; torque is off: move "
+                "them inside by hand (or check the config's limits, zero offset and direction "
+                "for them) and start again",
+                joints=tuple(j.name for j in joints),
+            )
+        # Goal := present, inside the limits: a joint resting a hair past one (a tick of
+        # rounding, a limb sagging onto its stop) is held at the limit instead.
+        u = self.units
+        ticks = np.clip(u.to_ticks(state.q), u.limit_lo_tick, u.limit_hi_tick)
         for g in self._groups:
             self._write_goals(g, ticks)
             self._sync_write_register(g, "torque_enable", dict.fromkeys(g.ids, 1))
         self._torque_on = True
-        self._last_q = state.q.copy()
+        self._last_q = self._rad_from_ticks(ticks)
 
     def _ramp_to(self, q_target: FloatArray) -> None:
         """Velocity-limited move from the last goal to ``q_target`` at the control rate."""
@@ -425,8 +447,9 @@ class DynamixelBackend(JointBackend):
             speed = np.minimum(speed, self.config.hardware.profile_velocity_rad_s)
         dt_s = 1.0 / self.config.control_rate_hz
         delta = np.asarray(q_target, dtype=np.float64) - self._last_q
-        duration_s = float(np.max(np.abs(delta) / speed))
-        steps = max(1, math.ceil(duration_s / dt_s))
+        # Each step a tick under speed · dt: the rounding to ticks adds at most one.
+        per_step = np.maximum(speed * dt_s - self.units.rad_per_tick, 0.25 * speed * dt_s)
+        steps = max(1, math.ceil(float(np.max(np.abs(delta) / per_step))))
         start = self._last_q.copy()
         t0 = time.monotonic()
         for k in range(1, steps + 1):
@@ -468,6 +491,11 @@ class DynamixelBackend(JointBackend):
         self._last_q = last_q
         return sent
 
+    @property
+    def position_quantum_rad(self) -> FloatArray:
+        """One position tick of each joint's servo: goals are rounded to it."""
+        return self.units.rad_per_tick
+
     def _ticks_from_rad(self, q: FloatArray) -> IntArray:
         """ServoUnits.to_ticks for one finite (J,) vector, without its generic argument checks;
         a joint its servo cannot reach still raises there (ServoRangeError)."""
@@ -475,7 +503,9 @@ class DynamixelBackend(JointBackend):
         ticks = np.rint((q * u.direction + u.zero_offset_rad) / u.rad_per_tick) + u.zero_tick
         if ticks.min() < 0 or np.any(ticks > u.max_tick):
             return u.to_ticks(q)  # raises ServoRangeError naming the joint
-        return ticks.astype(np.int64)
+        # A command at a limit rounds to the nearest tick, which may lie a hair past it: the
+        # ticks inside the limits are the servo's whole range here.
+        return np.minimum(np.maximum(ticks, u.limit_lo_tick), u.limit_hi_tick).astype(np.int64)
 
     def _rad_from_ticks(self, ticks: IntArray) -> FloatArray:
         """ServoUnits.from_ticks for one (J,) int64 vector, without its generic argument checks
@@ -501,6 +531,27 @@ class DynamixelBackend(JointBackend):
             joints=names,
         )
 
+    def _check_step(self, q: FloatArray) -> None:
+        """Defence in depth, as _check_joint_limits: no command moves a joint further than its
+        velocity limit allows in one control period (the SafetyLayer in front bounds every step
+        to that; a backend used on its own is refused a jump, not made to slew it)."""
+        if self._last_q is None:
+            return
+        bound = self.config.max_velocity / self.config.control_rate_hz
+        excess = np.abs(q - self._last_q) - bound - self.units.rad_per_tick
+        if np.all(excess <= 0.0):
+            return
+        bad = excess > 0.0
+        names = tuple(j.name for j, b in zip(self.config.joints, bad, strict=True) if b)
+        moves = np.round(np.abs(q - self._last_q)[bad], 4).tolist()
+        raise UnsafeCommandError(
+            f"command moves {', '.join(names)} by {moves} rad in one command, more than the "
+            "velocity limit allows in a control period "
+            f"({np.round(bound[bad], 4).tolist()} rad); nothing was sent, torque is off. Put a "
+            "SafetyLayer in front of the backend to bound each step",
+            joints=names,
+        )
+
     def send(self, cmd: JointCommand) -> JointCommand:
         self._require_ready()
         q = cmd.q
@@ -519,6 +570,8 @@ class DynamixelBackend(JointBackend):
             if not self._torque_on:
                 self._enable_torque_at_present()
                 self._ramp_to(q)
+            else:
+                self._check_step(q)
             sent = self._send_now(q, ticks)
         except BaseException as exc:
             self._stop_after(exc)

@@ -4,7 +4,10 @@ the joint limits and within ``v_max · dt`` of the previous command reach the se
 NaN/inf or a wrong shape raise :class:`UnsafeCommandError` and nothing is sent. Position and
 step clipping are counted per joint and summarised by :meth:`SafetyLayer.report`.
 ``dt`` is the time since the previous command (from ``JointCommand.t_s``), never more than
-the config's control period, so bogus or jumping timestamps cannot loosen the step bound.
+the config's control period, so jumping timestamps cannot loosen the step bound; a command
+whose time does not come after the previous one's is refused (UnsafeCommandError). A backend
+that rounds commands (a servo's position tick, ``JointBackend.position_quantum_rad``) gets a
+step bound that much smaller, so that the rounded goals keep to ``v_max · dt`` too.
 """
 
 from __future__ import annotations
@@ -55,10 +58,18 @@ class SafetyLayer(JointBackend):
         self.stats = ClipStats(per_joint=dict.fromkeys(config.joint_names, 0))
         self._prev_q: FloatArray | None = None
         self._prev_t: float | None = None
+        self._prev_asked: FloatArray | None = None  # the last command as asked, in the limits
+        # What the backend rounds commands to (a servo tick) is kept under the step bound.
+        quantum = backend.position_quantum_rad
+        self._quantum = np.zeros(config.num_joints) if quantum is None else np.asarray(quantum)
 
     @property
     def connected(self) -> bool:
         return self.backend.connected
+
+    @property
+    def position_quantum_rad(self) -> FloatArray | None:
+        return self.backend.position_quantum_rad
 
     def connect(self) -> None:
         self.backend.connect()
@@ -69,6 +80,7 @@ class SafetyLayer(JointBackend):
         """Start the step bound from ``q`` (None: the next command only gets position clamping)."""
         self._prev_q = None if q is None else np.clip(q, self.lower, self.upper)
         self._prev_t = None
+        self._prev_asked = self._prev_q
 
     def disconnect(self) -> None:
         self.backend.disconnect()
@@ -101,9 +113,16 @@ class SafetyLayer(JointBackend):
             q_safe = np.minimum(np.maximum(q, lower), upper)
         else:
             dt = self.period_s
-            if self._prev_t is not None and cmd.t_s > self._prev_t:
+            if self._prev_t is not None:
+                if not cmd.t_s > self._prev_t:  # NaN included
+                    raise UnsafeCommandError(
+                        f"command time {cmd.t_s!r} s does not come after the previous command's "
+                        f"{self._prev_t!r} s: the step bound needs the time between commands; "
+                        "nothing was sent (stamp each JointCommand with an increasing t_s)"
+                    )
                 dt = min(cmd.t_s - self._prev_t, self.period_s)
-            max_step = self.max_velocity * dt
+            bound = self.max_velocity * dt
+            max_step = np.maximum(bound - self._quantum, 0.0)
             # prev lies inside the limits, so the limits and the step box intersect, and one
             # clamp to the intersection is the limit clamp followed by the step clamp.
             lo = np.maximum(prev - max_step, lower)
@@ -115,6 +134,14 @@ class SafetyLayer(JointBackend):
             q_pos = np.minimum(np.maximum(q, lower), upper)
             pos_clipped = q_pos != q
             step_clipped = q_safe != q_pos
+            asked = self._prev_asked
+            if asked is not None and self._quantum.any():
+                # A clip is a command that asked for a step past v_max · dt from the one
+                # before it. The tick kept in hand for the backend's rounding (which can leave
+                # the robot a few ticks behind a command at full speed) is no clip.
+                step_clipped &= np.abs(q_pos - asked) > bound + 1e-12
+            if not (pos_clipped.any() or step_clipped.any()):
+                return self._commit(q_safe, q, cmd.t_s)
             s.commands_clipped += 1
             s.position_clips += int(pos_clipped.sum())
             s.step_clips += int(step_clipped.sum())
@@ -127,9 +154,13 @@ class SafetyLayer(JointBackend):
             for n, c in zip(names, pos_clipped | step_clipped, strict=True):
                 if c:
                     s.per_joint[n] += 1
+        return self._commit(q_safe, q, cmd.t_s)
+
+    def _commit(self, q_safe: FloatArray, q: FloatArray, t_s: float) -> JointCommand:
         self._prev_q = q_safe
-        self._prev_t = cmd.t_s
-        return JointCommand(q_safe, cmd.t_s)
+        self._prev_t = t_s
+        self._prev_asked = np.minimum(np.maximum(q, self.lower), self.upper)
+        return JointCommand(q_safe, t_s)
 
     def send(self, cmd: JointCommand) -> JointCommand:
         return self.backend.send(self.clamp(cmd))

@@ -166,10 +166,8 @@ def read_registers(
 
 def joint_tick_range(joint: JointConfig) -> tuple[int, int]:
     """The lowest and highest tick the config's joint range commands (direction and zero offset
-    applied: a reversed joint's lower limit is its servo's higher tick)."""
-    units = JointServoUnits(joint)
-    a, b = units.to_tick(joint.lower_rad), units.to_tick(joint.upper_rad)
-    return min(a, b), max(a, b)
+    applied: a reversed joint's lower limit is its servo's higher tick; rounded inward)."""
+    return JointServoUnits(joint).limit_ticks()
 
 
 def check_servo(

@@ -14,6 +14,8 @@ always maps to at least 1 step.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -32,6 +34,8 @@ VELOCITY_STEP_RPM: dict[str, float] = {
 # Largest value the speed register takes (XM430 Profile Velocity is 32 bit, but its useful range
 # ends at the Velocity Limit register's maximum, 1023; Protocol 1.0 Moving Speed is 0–1023).
 VELOCITY_MAX_STEPS = 1023
+# A limit that falls on a tick to within rounding noise keeps that tick.
+_TICK_EPS = 1e-9
 
 
 def servo_tick_range(model: ServoModel) -> tuple[int, int]:
@@ -73,6 +77,20 @@ class JointServoUnits:
             raise _rad_error(self, float(q_rad))
         return int(tick)
 
+    def limit_ticks(self) -> tuple[int, int]:
+        """The lowest and highest tick inside the joint's limits (direction and zero offset
+        applied; rounded inward, so that no tick of the range is a hair past a limit)."""
+        j, m = self.joint, self.model
+        ends = [
+            (j.direction * q + j.zero_offset_rad) / m.rad_per_tick + m.zero_tick
+            for q in (j.lower_rad, j.upper_rad)
+        ]
+        lo = max(m.min_tick, math.ceil(min(ends) - _TICK_EPS))
+        hi = min(m.max_tick, math.floor(max(ends) + _TICK_EPS))
+        if lo > hi:  # limits narrower than a tick: the one nearest their middle
+            lo = hi = int(np.clip(round(0.5 * (ends[0] + ends[1])), m.min_tick, m.max_tick))
+        return lo, hi
+
     def from_tick(self, tick: int) -> float:
         """The joint angle (rad) for a tick; ServoRangeError outside the model's tick range."""
         j, m = self.joint, self.model
@@ -99,6 +117,8 @@ class ServoUnits:
         self.max_tick = np.array([m.max_tick for m in models], dtype=np.int64)
         self.lower_rad = np.array([u.rad_range[0] for u in self.joints])
         self.upper_rad = np.array([u.rad_range[1] for u in self.joints])
+        limit_ticks = np.array([u.limit_ticks() for u in self.joints], dtype=np.int64)
+        self.limit_lo_tick, self.limit_hi_tick = limit_ticks[:, 0], limit_ticks[:, 1]
         self.velocity_step_rad_s = np.array(
             [VELOCITY_STEP_RPM[m.name] * RPM_TO_RAD_S for m in models]
         )

@@ -107,7 +107,14 @@ def test_tick_conversions_equal_servo_units(op3: RobotConfig, data: st.DataObjec
             for lo, hi in zip(units.lower_rad, units.upper_rad, strict=True)
         ]
     )
-    np.testing.assert_array_equal(backend._ticks_from_rad(q), units.to_ticks(q))
+    # The command path's ticks are ServoUnits' inside the joint limits, and at the nearest
+    # tick inside them past a limit (no tick a hair past it).
+    sent = backend._ticks_from_rad(q)
+    inside = (q >= op3.lower) & (q <= op3.upper)
+    np.testing.assert_array_equal(sent[inside], units.to_ticks(q)[inside])
+    assert np.all((sent >= units.limit_lo_tick) & (sent <= units.limit_hi_tick))
+    back = backend._rad_from_ticks(sent)
+    assert np.all((back >= op3.lower - 1e-12) & (back <= op3.upper + 1e-12))
     ticks = units.to_ticks(q)
     np.testing.assert_array_equal(backend._rad_from_ticks(ticks), units.from_ticks(ticks))
     bad = ticks.copy()

@@ -306,6 +306,31 @@ def test_command_outside_joint_limits_is_refused_without_a_safety_layer(
         assert not any(s.torque_on for s in sim.servos.values())
 
 
+def test_a_jump_is_refused_without_a_safety_layer(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
+) -> None:
+    """Inside the limits but further than the velocity limit allows in one control period:
+    the backend alone refuses it (a SafetyLayer in front bounds every step), sends no goal
+    and switches torque off."""
+    sim = next(iter(op3_sim.values()))
+    shoulder = op3.joint_index("r_sho_pitch")
+    with DynamixelBackend(op3, make_buses(op3, op3_sim)) as backend:
+        backend.send(JointCommand(op3.init_pose, 0.0))
+        step = op3.init_pose.copy()
+        step[shoulder] += 0.9 * op3.max_velocity[shoulder] / op3.control_rate_hz
+        backend.send(JointCommand(step, 0.008))  # within one period's reach: sent
+        sim.settle()
+        goals_before = {sid: s.get("goal_position") for sid, s in sim.servos.items()}
+        jump = step.copy()
+        jump[shoulder] = np.clip(step[shoulder] + 1.0, op3.lower[shoulder], op3.upper[shoulder])
+        with pytest.raises(UnsafeCommandError, match="r_sho_pitch by") as info:
+            backend.send(JointCommand(jump, 0.016))
+        assert info.value.joints == ("r_sho_pitch",)
+        sim.settle()
+        assert {sid: s.get("goal_position") for sid, s in sim.servos.items()} == goals_before
+        assert not any(s.torque_on for s in sim.servos.values())
+
+
 def test_sigint_switches_torque_off(
     op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
 ) -> None:

@@ -32,7 +32,14 @@ def test_no_command_ever_leaves_the_limits(op3: RobotConfig, data: st.DataObject
     t = 0.0
     for _ in range(data.draw(st.integers(1, 15))):
         q = data.draw(arrays(np.float64, n, elements=st.floats(-50, 50)))
-        t += data.draw(st.sampled_from([period, period / 3, 5 * period, 0.0, -1.0]))
+        step = data.draw(st.sampled_from([period, period / 3, 5 * period, 0.0, -1.0]))
+        if step <= 0.0 and inner.sent:  # a time that does not advance: refused, nothing sent
+            before = len(inner.sent)
+            with pytest.raises(UnsafeCommandError, match="does not come after"):
+                safe.send(JointCommand(q, t + step))
+            assert len(inner.sent) == before
+            continue
+        t += max(step, 0.0)
         sent = safe.send(JointCommand(q, t))
         assert np.all(sent.q >= op3.lower - 1e-12)
         assert np.all(sent.q <= op3.upper + 1e-12)
@@ -56,9 +63,9 @@ def test_each_command_is_the_nearest_safe_one_and_every_clip_is_counted(
     for _ in range(data.draw(st.integers(1, 10))):
         # Near the previous command, so that some joints pass unchanged and some are clipped.
         q = prev + data.draw(arrays(np.float64, n, elements=st.floats(-3, 3)))
-        t += data.draw(st.sampled_from([period, period / 3, 5 * period, 0.0, -1.0]))
+        t += data.draw(st.sampled_from([period, period / 3, 5 * period]))
         sent = safe.send(JointCommand(q, t)).q
-        dt = min(t - prev_t, period) if prev_t is not None and t > prev_t else period
+        dt = min(t - prev_t, period) if prev_t is not None else period
         step = op3.max_velocity * dt
         q_pos = np.clip(q, op3.lower, op3.upper)
         expected = np.clip(np.clip(q_pos, prev - step, prev + step), op3.lower, op3.upper)
