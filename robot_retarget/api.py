@@ -12,10 +12,13 @@ robot's control rate (or ``fps``); the trajectory starts at the clip's first fra
 from __future__ import annotations
 
 import math
+import numbers
 import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from robot_retarget.errors import RetargetError
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
@@ -55,7 +58,7 @@ def retarget(
     loaded model; default: the shipped default — its numpy runtime, no torch needed), at ``fps``
     (default: the robot's control rate). ``foot_lock``: run the residual network's foot lock
     (off on the robot by default, as in ``convert``)."""
-    number = isinstance(fps, int | float) and not isinstance(fps, bool)
+    number = isinstance(fps, numbers.Real) and not isinstance(fps, bool | np.bool_)
     if fps is not None and not (number and math.isfinite(fps) and fps > 0.0):
         raise RetargetError(f"fps must be a positive number of frames per second, got {fps!r}")
     if not isinstance(clip_or_motion, HumanMotion | str | os.PathLike):

@@ -63,6 +63,7 @@ def test_api_errors_are_retarget_errors_that_name_what_is_wrong(tmp_path: Path) 
     for fps in (0.0, -5.0, float("nan"), "30", True):
         with pytest.raises(rr.RetargetError, match="fps must be a positive number"):
             rr.retarget(CLIP, fps=fps)  # type: ignore[arg-type]
+    assert rr.retarget(CLIP, fps=np.float32(30.0)).trajectory.fps == 30.0  # numpy numbers too
     with pytest.raises(rr.RetargetError, match="robot must be a name"):
         rr.retarget(CLIP, robot=None)  # type: ignore[arg-type]
     with pytest.raises(rr.RetargetError, match="a folder; retarget takes one clip"):

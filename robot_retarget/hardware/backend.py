@@ -40,9 +40,19 @@ class JointBackend(ABC):
     @property
     def position_quantum_rad(self) -> FloatArray | None:
         """(J,) the resolution commands are rounded to on the way out (a servo tick), or None
-        where they are sent as they are. The SafetyLayer keeps that much under the step bound,
-        so that the rounding cannot take a step past ``v_max · dt``."""
+        where they are sent as they are (then :meth:`rounded` is never called). The
+        SafetyLayer keeps the rounded commands within ``v_max · dt`` of each other."""
         return None
+
+    def set_command_period(self, period_s: float) -> None:
+        """The time between commands of the loop that drives this backend (``stream --rate``
+        may differ from the config's rate); a backend that checks steps on its own uses it.
+        The SafetyLayer in front tells it its own."""
+        return None
+
+    def rounded(self, q: FloatArray) -> FloatArray:
+        """(J,) the joint angles :meth:`send` would write for ``q`` (finite, in the limits)."""
+        return q
 
     def __enter__(self) -> JointBackend:
         self.connect()

@@ -217,6 +217,7 @@ class DynamixelBackend(JointBackend):
         self._torque_on = False
         self._faulted: HardwareError | None = None
         self._last_q: FloatArray | None = None
+        self._command_period_s = 1.0 / config.control_rate_hz  # set_command_period
         self._old_handlers: dict[int, Any] = {}
         self.last_packets: dict[str, bytes] = {}  # bus name → last goal Sync Write sent
         self.parallel_buses = parallel_buses  # may be switched between ticks (bench loop)
@@ -454,7 +455,7 @@ class DynamixelBackend(JointBackend):
         t0 = time.monotonic()
         for k in range(1, steps + 1):
             q = start + delta * (k / steps)
-            self._send_now(q)
+            self._send_now(q, self._ticks_from_rad(q))
             wait_s = t0 + k * dt_s - time.monotonic()
             if wait_s > 0.0 and k < steps:
                 self._sleep(wait_s)
@@ -495,6 +496,14 @@ class DynamixelBackend(JointBackend):
     def position_quantum_rad(self) -> FloatArray:
         """One position tick of each joint's servo: goals are rounded to it."""
         return self.units.rad_per_tick
+
+    def rounded(self, q: FloatArray) -> FloatArray:
+        return self._rad_from_ticks(self._ticks_from_rad(q))
+
+    def set_command_period(self, period_s: float) -> None:
+        if not (math.isfinite(period_s) and period_s > 0.0):
+            raise ValueError(f"period_s must be a positive number of seconds, got {period_s}")
+        self._command_period_s = period_s
 
     def _ticks_from_rad(self, q: FloatArray) -> IntArray:
         """ServoUnits.to_ticks for one finite (J,) vector, without its generic argument checks;
@@ -537,7 +546,7 @@ class DynamixelBackend(JointBackend):
         to that; a backend used on its own is refused a jump, not made to slew it)."""
         if self._last_q is None:
             return
-        bound = self.config.max_velocity / self.config.control_rate_hz
+        bound = self.config.max_velocity * self._command_period_s
         excess = np.abs(q - self._last_q) - bound - self.units.rad_per_tick
         if np.all(excess <= 0.0):
             return
@@ -546,9 +555,10 @@ class DynamixelBackend(JointBackend):
         moves = np.round(np.abs(q - self._last_q)[bad], 4).tolist()
         raise UnsafeCommandError(
             f"command moves {', '.join(names)} by {moves} rad in one command, more than the "
-            "velocity limit allows in a control period "
-            f"({np.round(bound[bad], 4).tolist()} rad); nothing was sent, torque is off. Put a "
-            "SafetyLayer in front of the backend to bound each step",
+            "velocity limit allows in a command period "
+            f"({np.round(bound[bad], 4).tolist()} rad); nothing was sent, torque is off (a "
+            "SafetyLayer in front bounds every step: use one, and tell the backend the period "
+            "it runs at with set_command_period)",
             joints=names,
         )
 

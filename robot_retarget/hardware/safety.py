@@ -5,9 +5,10 @@ NaN/inf or a wrong shape raise :class:`UnsafeCommandError` and nothing is sent. 
 step clipping are counted per joint and summarised by :meth:`SafetyLayer.report`.
 ``dt`` is the time since the previous command (from ``JointCommand.t_s``), never more than
 the config's control period, so jumping timestamps cannot loosen the step bound; a command
-whose time does not come after the previous one's is refused (UnsafeCommandError). A backend
-that rounds commands (a servo's position tick, ``JointBackend.position_quantum_rad``) gets a
-step bound that much smaller, so that the rounded goals keep to ``v_max · dt`` too.
+whose time does not come after the previous one's is refused (UnsafeCommandError). For a
+backend that rounds commands (a servo's position tick, ``JointBackend.position_quantum_rad``)
+the command returned is the one it will write, on its grid and within ``v_max · dt`` of what
+it wrote last (the nearest tick could be one too far).
 """
 
 from __future__ import annotations
@@ -58,10 +59,12 @@ class SafetyLayer(JointBackend):
         self.stats = ClipStats(per_joint=dict.fromkeys(config.joint_names, 0))
         self._prev_q: FloatArray | None = None
         self._prev_t: float | None = None
-        self._prev_asked: FloatArray | None = None  # the last command as asked, in the limits
-        # What the backend rounds commands to (a servo tick) is kept under the step bound.
-        quantum = backend.position_quantum_rad
-        self._quantum = np.zeros(config.num_joints) if quantum is None else np.asarray(quantum)
+        # A backend that rounds commands to ticks: what it last wrote, and its tick size.
+        backend.set_command_period(self.period_s)  # its own step check, at this period
+        self._quantum = backend.position_quantum_rad
+        self._prev_sent: FloatArray | None = None
+        if self._quantum is not None:
+            _check_ticks_per_period(config, self._quantum, self.period_s)
 
     @property
     def connected(self) -> bool:
@@ -70,6 +73,9 @@ class SafetyLayer(JointBackend):
     @property
     def position_quantum_rad(self) -> FloatArray | None:
         return self.backend.position_quantum_rad
+
+    def rounded(self, q: FloatArray) -> FloatArray:
+        return self.backend.rounded(q)
 
     def connect(self) -> None:
         self.backend.connect()
@@ -80,7 +86,7 @@ class SafetyLayer(JointBackend):
         """Start the step bound from ``q`` (None: the next command only gets position clamping)."""
         self._prev_q = None if q is None else np.clip(q, self.lower, self.upper)
         self._prev_t = None
-        self._prev_asked = self._prev_q
+        self._prev_sent = None
 
     def disconnect(self) -> None:
         self.backend.disconnect()
@@ -109,6 +115,7 @@ class SafetyLayer(JointBackend):
         # minimum(maximum(·)) is np.clip (inputs are finite here) without its wrapper's cost.
         lower, upper = self.lower, self.upper
         prev = self._prev_q
+        bound: FloatArray | None = None
         if prev is None:
             q_safe = np.minimum(np.maximum(q, lower), upper)
         else:
@@ -122,11 +129,10 @@ class SafetyLayer(JointBackend):
                     )
                 dt = min(cmd.t_s - self._prev_t, self.period_s)
             bound = self.max_velocity * dt
-            max_step = np.maximum(bound - self._quantum, 0.0)
             # prev lies inside the limits, so the limits and the step box intersect, and one
             # clamp to the intersection is the limit clamp followed by the step clamp.
-            lo = np.maximum(prev - max_step, lower)
-            hi = np.minimum(prev + max_step, upper)
+            lo = np.maximum(prev - bound, lower)
+            hi = np.minimum(prev + bound, upper)
             q_safe = np.minimum(np.maximum(q, lo), hi)
         s = self.stats
         s.commands += 1
@@ -134,14 +140,6 @@ class SafetyLayer(JointBackend):
             q_pos = np.minimum(np.maximum(q, lower), upper)
             pos_clipped = q_pos != q
             step_clipped = q_safe != q_pos
-            asked = self._prev_asked
-            if asked is not None and self._quantum.any():
-                # A clip is a command that asked for a step past v_max · dt from the one
-                # before it. The tick kept in hand for the backend's rounding (which can leave
-                # the robot a few ticks behind a command at full speed) is no clip.
-                step_clipped &= np.abs(q_pos - asked) > bound + 1e-12
-            if not (pos_clipped.any() or step_clipped.any()):
-                return self._commit(q_safe, q, cmd.t_s)
             s.commands_clipped += 1
             s.position_clips += int(pos_clipped.sum())
             s.step_clips += int(step_clipped.sum())
@@ -154,13 +152,29 @@ class SafetyLayer(JointBackend):
             for n, c in zip(names, pos_clipped | step_clipped, strict=True):
                 if c:
                     s.per_joint[n] += 1
-        return self._commit(q_safe, q, cmd.t_s)
-
-    def _commit(self, q_safe: FloatArray, q: FloatArray, t_s: float) -> JointCommand:
         self._prev_q = q_safe
-        self._prev_t = t_s
-        self._prev_asked = np.minimum(np.maximum(q, self.lower), self.upper)
-        return JointCommand(q_safe, t_s)
+        self._prev_t = cmd.t_s
+        return JointCommand(self._on_the_grid(q_safe, bound), cmd.t_s)
+
+    def _on_the_grid(self, q_safe: FloatArray, bound: FloatArray | None) -> FloatArray:
+        """What a backend that rounds to ticks will write, kept within ``bound`` of what it
+        wrote last: where the nearest tick would step past ``v_max · dt``, the farthest tick
+        within it instead. The bound above runs on the unrounded commands, so the robot's
+        effective top speed is whole ticks per period, and nothing accumulates upstream."""
+        quantum = self._quantum
+        if quantum is None:
+            return q_safe
+        sent = self.backend.rounded(q_safe)
+        last = self._prev_sent
+        if bound is not None and last is not None:
+            step = sent - last
+            over = np.abs(step) > bound + 1e-12
+            if over.any():
+                whole = np.floor(bound / quantum + 1e-9) * quantum
+                sent = np.where(over, last + np.sign(step) * whole, sent)
+                sent = self.backend.rounded(sent)  # on the grid already: the same values
+        self._prev_sent = sent
+        return sent
 
     def send(self, cmd: JointCommand) -> JointCommand:
         return self.backend.send(self.clamp(cmd))
@@ -177,3 +191,25 @@ class SafetyLayer(JointBackend):
         if worst:
             lines.append("most clipped: " + ", ".join(f"{n} ({c})" for c, n in worst))
         return "\n".join(lines)
+
+
+MIN_TICKS_PER_PERIOD = 2.0
+"""A joint must be able to move this many ticks per control period at its velocity limit: with
+fewer, whole ticks within ``v_max · dt`` leave it nearly still (a quarter-period tick of
+``--wake-on-input`` gets a quarter of them)."""
+
+
+def _check_ticks_per_period(config: RobotConfig, quantum: FloatArray, period_s: float) -> None:
+    ticks = config.max_velocity * period_s / np.asarray(quantum)
+    slow = ticks < MIN_TICKS_PER_PERIOD
+    if not slow.any():
+        return
+    j = int(np.argmin(ticks))
+    joint = config.joints[j]
+    top_hz = float(config.max_velocity[j] / (MIN_TICKS_PER_PERIOD * quantum[j]))
+    raise UnsafeCommandError(
+        f"at {1.0 / period_s:g} Hz joint {joint.name} moves {ticks[j]:.2f} servo ticks per "
+        f"period at its velocity limit; commands rounded to ticks need at least "
+        f"{MIN_TICKS_PER_PERIOD:g}: run at {top_hz:.0f} Hz or less",
+        joints=(joint.name,),
+    )

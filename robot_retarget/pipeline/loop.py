@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -177,7 +178,12 @@ class ControlLoop:
         f = self.settings.input_filter
         self._input_filter = None if f is None else OneEuroFilter(f)
         self._ramp_done = False
+        # A pose is reached when every command is within a hair of it, or within a tick where
+        # the backend writes ticks (its commands are on the tick grid, the pose need not be).
+        quantum = self.safety.position_quantum_rad
+        self._reach_tol = 1e-6 + (0.0 if quantum is None else np.asarray(quantum))
         self._k = 0  # tick counter: command stamps are k periods apart
+        self._last_stamp = -math.inf
         # A watcher's (stream --view) one-slot mailbox: one LiveFrame per command, never waited on.
         self.mailbox = mailbox
         self._silence_s = 0.0
@@ -201,8 +207,13 @@ class ControlLoop:
         # Stamps 1 ppb more than a period apart: the safety layer bounds each step by exactly
         # v_max · period, the optimizer's bound (see convert.py).
         stamp = self._k * self.period_s * (1.0 + 1e-9) + self._stamp_shift_s
-        # As SafetyLayer.send, in two steps: the loop keeps the safe command itself, not the
-        # backend's echo (rounded to servo ticks), so its state never drifts by rounding.
+        # The safety layer refuses a stamp that does not advance: a command right after one
+        # sent just before an interrupt (the tick counter not yet moved on, the smooth stop's
+        # first) gets a hair more, so it holds still for that tick.
+        stamp = max(stamp, self._last_stamp + 1e-9 * self.period_s)
+        self._last_stamp = stamp
+        # As SafetyLayer.send, in two steps: the loop keeps the safe command itself (on the
+        # backend's tick grid where it rounds), not the backend's echo.
         safe = self.safety.clamp(JointCommand(q, stamp))
         self._t_clamped = self.clock()
         self.safety.backend.send(safe)
@@ -372,7 +383,7 @@ class ControlLoop:
                 return
             q = toward(self._q_cmd, self.config.safe_pose, self._ramp_step)
             self._send(q, now, interp.play_time(now))
-            reached = np.max(np.abs(self.config.safe_pose - self._q_cmd)) < 1e-6
+            reached = bool(np.all(np.abs(self.config.safe_pose - self._q_cmd) < self._reach_tol))
             if reached and self.config.hardware.torque_off_at_safe_pose:
                 self._release()
         else:
@@ -435,7 +446,7 @@ class ControlLoop:
         deadline = now + self.settings.stop_timeout_s
         goal = self.config.safe_pose
         next_tick = now
-        while np.max(np.abs(goal - self._q_cmd)) > 1e-6 and self.clock() < deadline:
+        while np.any(np.abs(goal - self._q_cmd) >= self._reach_tol) and self.clock() < deadline:
             q = toward(self._q_cmd, goal, self._ramp_step)
             self._send(q, self.clock(), float("nan"))
             next_tick += self.period_s

@@ -3,6 +3,8 @@ limit), and torque switched on only where the joints are inside their limits."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -82,11 +84,18 @@ def test_a_joint_resting_a_hair_past_its_limit_is_held_at_the_limit() -> None:
 
 
 class _TickBackend(RecordingBackend):
-    """Records commands and rounds them as DynamixelBackend does (its quantum: one tick)."""
+    """Records commands and rounds them as ``rounder`` (a DynamixelBackend) writes them."""
+
+    def __init__(self, config: RobotConfig, rounder: DynamixelBackend) -> None:
+        super().__init__(config)
+        self.rounder = rounder
 
     @property
     def position_quantum_rad(self) -> np.ndarray:
-        return ServoUnits(self.config).rad_per_tick
+        return self.rounder.position_quantum_rad
+
+    def rounded(self, q: np.ndarray) -> np.ndarray:
+        return self.rounder.rounded(q)
 
 
 @pytest.mark.parametrize("robot", ["op3", "poppy_humanoid"])
@@ -94,7 +103,7 @@ class _TickBackend(RecordingBackend):
 def test_rounded_goals_keep_to_the_velocity_limit(robot: str, share: float) -> None:
     """Commands pulled to the step bound every time, rounded to ticks on the way out (the
     backend's own code): no tick step is more than v_max · dt (it was up to 1.16× before the
-    bound kept a tick in hand)."""
+    SafetyLayer kept the rounded goals within it), and every command is on the servo's grid."""
     config = load_robot_config(robot)
     backend = DynamixelBackend(
         config,
@@ -103,7 +112,7 @@ def test_rounded_goals_keep_to_the_velocity_limit(robot: str, share: float) -> N
             for b in config.buses
         },
     )
-    safety = SafetyLayer(config, _TickBackend(config))
+    safety = SafetyLayer(config, _TickBackend(config, backend))
     safety.connect()
     rng = np.random.default_rng(0)
     dt = share / config.control_rate_hz
@@ -111,7 +120,24 @@ def test_rounded_goals_keep_to_the_velocity_limit(robot: str, share: float) -> N
     for k in range(1, 400):
         q = safety.send(JointCommand(rng.uniform(config.lower, config.upper), k * dt)).q
         ticks = backend._ticks_from_rad(q)
+        np.testing.assert_array_equal(backend._rad_from_ticks(ticks), q)  # written as it is
         step = np.abs(ticks - prev) * backend.units.rad_per_tick
         bound = config.max_velocity * (dt if k > 1 else 1.0 / config.control_rate_hz)
         assert np.all(step <= bound + 1e-12)  # the first command: a full period, by design
         prev = ticks
+
+
+def test_a_rate_too_high_for_whole_ticks_is_refused() -> None:
+    """At 1000 Hz an AX-12A joint moves barely one tick per period at its velocity limit: the
+    safety layer in front of a tick-rounding backend names it and the rate that works."""
+    config = load_robot_config("poppy_humanoid")
+    backend = DynamixelBackend(
+        config,
+        {
+            b.name: DynamixelBus("/dev/null", protocol=b.protocol, baud_rate=b.baud_rate)
+            for b in config.buses
+        },
+    )
+    fast = dataclasses.replace(config, control_rate_hz=1000.0)
+    with pytest.raises(UnsafeCommandError, match=r"at 1000 Hz joint head_\w+ moves .* Hz or less"):
+        SafetyLayer(fast, _TickBackend(fast, backend))

@@ -94,3 +94,14 @@ def test_one_frame_of_points_collapsed_onto_a_pixel_does_not_lose_the_person() -
         warnings.simplefilter("error")
         assert tr.choose([(np.full((17, 2), 1e200), whole)]) is None
         assert tr.choose([(_STANDING, whole)]) == 0
+
+
+def test_a_larger_stranger_who_hides_the_person_is_not_followed() -> None:
+    """Someone near the camera (a box twice the size) steps in front of the followed person:
+    nobody that frame, and the person again when they reappear, however large the stranger."""
+    whole = np.ones(17, dtype=bool)
+    tr = PersonTracker()
+    assert tr.choose([(_STANDING, whole)]) == 0
+    stranger = (2.0 * (_STANDING - 320.0) + np.array([520.0, 320.0]), whole)  # off to one side
+    assert tr.choose([stranger]) is None
+    assert tr.choose([stranger, (_STANDING, whole)]) == 1

@@ -3,8 +3,8 @@
 The rule: on the first frame with anyone in view, the person with the largest box (of their
 visible keypoints, the outermost tenth on each side left out) — usually the one nearest the
 camera. After that, the person whose centre (the median of their visible keypoints) is nearest
-the followed person's last centre, if it lies within half that box's diagonal (or of its own
-box, if that is larger); both centres
+the followed person's last centre, if it lies within half the diagonal of their largest box
+in their last 5 frames; both centres
 are taken over the keypoints seen in both frames (where at least two are), so a body that
 comes into view below its head and shoulders is still the same person; if nobody does,
 the frame counts as nobody seen (every point missing, never another person's points). After
@@ -14,12 +14,18 @@ chosen again.
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from robot_retarget.array_types import BoolArray, FloatArray
 
 REACQUIRE_FRAMES = 15
 
+
+REACH_FRAMES = 5
+"""The reach is half the largest diagonal of the followed person's boxes in this many of their
+last frames."""
 
 TRIM_PERCENT = 10.0
 """The box leaves out this share of the visible points on each side, and its centre is their
@@ -50,7 +56,7 @@ class PersonTracker:
 
     def reset(self) -> None:
         self._centre: FloatArray | None = None
-        self._diagonal = 0.0
+        self._diagonals: deque[float] = deque(maxlen=REACH_FRAMES)
         self._lost = 0
         self._last: tuple[FloatArray, BoolArray] | None = None  # the followed person's points
 
@@ -74,16 +80,19 @@ class PersonTracker:
             return None
         if self._centre is None:
             i, (centre, _area, diag) = max(candidates, key=lambda ib: ib[1][1])
+            self._diagonals.clear()  # maybe another person: only their own boxes
         else:
             with np.errstate(over="ignore", invalid="ignore"):  # 1e200 px: far, not a warning
                 dist = {i: self._distance(*people[i], b[0]) for i, b in candidates}
             i, (centre, _area, diag) = min(candidates, key=lambda ib: dist[ib[0]])
-            # The larger of the two boxes sets the reach: one frame of points collapsed onto
-            # a pixel (an estimator's failure) must not shrink it to nothing for the next.
-            if not dist[i] <= 0.5 * max(self._diagonal, diag):
+            # The followed person's largest box of the last frames sets the reach: one frame
+            # of points collapsed onto a pixel (an estimator's failure) must not shrink it to
+            # nothing for the next, and another person's box never widens it.
+            if not dist[i] <= 0.5 * max(self._diagonals):
                 self._miss()
                 return None
-        self._centre, self._diagonal, self._lost = centre, max(diag, 1e-6), 0
+        self._centre, self._lost = centre, 0
+        self._diagonals.append(max(diag, 1e-6))
         xy, valid = people[i]
         self._last = (np.array(xy, dtype=np.float64), np.array(valid, dtype=bool))
         return i
