@@ -72,21 +72,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _checkpoint_file(given: str) -> str:
     """A run folder stands for its best checkpoint (either kind of model); a runtime file, a
-    folder without one or a path that names no file is a one-line error. A bare name (a
-    built-in or shipped model) passes through to the loader."""
-    path = Path(given)
-    if path.is_dir():
-        if (path / "best.pt").is_file():
-            return str(path / "best.pt")
-        raise ModelLoadError(
-            f"{given}: a folder without best.pt (a training run folder holds one after its "
-            "first validation); name a .pt checkpoint"
-        )
-    if path.suffix == ".npz":
-        raise ModelLoadError(
-            f"{given}: a numpy runtime file, already exported (convert, stream and bench use it "
-            "as --model); export reads a .pt checkpoint"
-        )
-    if not path.exists() and (path.suffix == ".pt" or len(path.parts) > 1):
-        raise ModelLoadError(f"{given}: no such checkpoint file")
-    return given
+    folder without one or a path that names no file is a one-line error (load_model's rules).
+    A bare name (a built-in or shipped model) passes through to the loader."""
+    from robot_retarget.nn.inference import checkpoint_file
+
+    path = checkpoint_file(given)
+    return given if path is None else str(path)

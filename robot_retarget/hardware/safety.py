@@ -172,7 +172,8 @@ class SafetyLayer(JointBackend):
             if over.any():
                 whole = np.floor(bound / quantum + 1e-9) * quantum
                 sent = np.where(over, last + np.sign(step) * whole, sent)
-                sent = self.backend.rounded(sent)  # on the grid already: the same values
+                # The same ticks; rounded again so the floats are exactly what gets written.
+                sent = self.backend.rounded(sent)
         self._prev_sent = sent
         return sent
 

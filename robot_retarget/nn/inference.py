@@ -80,6 +80,33 @@ def available_models() -> tuple[str, ...]:
     )
 
 
+def checkpoint_file(text: str) -> Path | None:
+    """The checkpoint a path names: the file, or a training run folder's ``best.pt``; None
+    when ``text`` names no file or folder (it may be a model's name). A runtime ``.npz``, a
+    folder without ``best.pt`` and a ``.pt`` or folder path that does not exist are a
+    ModelLoadError saying so."""
+    candidate = Path(text).expanduser()
+    if candidate.is_dir():
+        if (candidate / "best.pt").is_file():
+            return candidate / "best.pt"  # a training run's folder
+        raise ModelLoadError(
+            f"{text}: a folder without best.pt (a training run folder holds one after its "
+            "first validation); name a .pt checkpoint",
+            model=text,
+        )
+    if candidate.suffix == ".npz":
+        raise ModelLoadError(
+            f"{text}: a numpy runtime file, already exported (convert, stream and the API take "
+            "it as --model); this command reads the .pt checkpoint it was exported from",
+            model=text,
+        )
+    if candidate.is_file():
+        return candidate
+    if candidate.suffix == ".pt" or len(candidate.parts) > 1:
+        raise ModelLoadError(f"{text}: no such checkpoint file", model=text)
+    return None
+
+
 def load_model(name_or_path: str | Path = DEFAULT_MODEL, *, device: str = "cpu") -> LoadedModel:
     """A model by built-in name, shipped checkpoint name or checkpoint path.
 
@@ -90,21 +117,7 @@ def load_model(name_or_path: str | Path = DEFAULT_MODEL, *, device: str = "cpu")
         model = build_model(text).eval()
         return LoadedModel(name=text, model=model.to(device))
     shipped = shipped_checkpoints()
-    path = shipped.get(text)
-    if path is None:
-        candidate = Path(text).expanduser()
-        if candidate.is_file():
-            path = candidate
-        elif candidate.is_dir() and (candidate / "best.pt").is_file():
-            path = candidate / "best.pt"  # a training run's folder
-    if path is not None and path.suffix == ".npz":
-        raise ModelLoadError(
-            f"{text}: a numpy runtime file (convert, stream and the API take it as --model); "
-            "this command reads the .pt checkpoint it was exported from",
-            model=text,
-        )
-    if path is None and (Path(text).suffix == ".pt" or len(Path(text).parts) > 1):
-        raise ModelLoadError(f"{text}: no such checkpoint file or run folder", model=text)
+    path = shipped.get(text) or checkpoint_file(text)
     if path is None:
         raise ModelLoadError(
             f"no model {text!r}: not a built-in model, a shipped checkpoint or a checkpoint "

@@ -70,21 +70,22 @@ class JointServoUnits:
 
     def to_tick(self, q_rad: float) -> int:
         """The tick for joint angle ``q_rad``; ServoRangeError when the servo cannot reach it."""
-        j, m = self.joint, self.model
-        tick = float(np.rint((j.direction * q_rad + j.zero_offset_rad) / m.rad_per_tick))
-        tick += m.zero_tick
+        m = self.model
+        tick = float(np.rint(self._exact_tick(q_rad)))
         if not (np.isfinite(tick) and m.min_tick <= tick <= m.max_tick):
             raise _rad_error(self, float(q_rad))
         return int(tick)
+
+    def _exact_tick(self, q_rad: float) -> float:
+        """The (fractional) tick of joint angle ``q_rad``: direction and zero offset applied."""
+        j, m = self.joint, self.model
+        return (j.direction * q_rad + j.zero_offset_rad) / m.rad_per_tick + m.zero_tick
 
     def limit_ticks(self) -> tuple[int, int]:
         """The lowest and highest tick inside the joint's limits (direction and zero offset
         applied; rounded inward, so that no tick of the range is a hair past a limit)."""
         j, m = self.joint, self.model
-        ends = [
-            (j.direction * q + j.zero_offset_rad) / m.rad_per_tick + m.zero_tick
-            for q in (j.lower_rad, j.upper_rad)
-        ]
+        ends = [self._exact_tick(q) for q in (j.lower_rad, j.upper_rad)]
         lo = max(m.min_tick, math.ceil(min(ends) - _TICK_EPS))
         hi = min(m.max_tick, math.floor(max(ends) + _TICK_EPS))
         if lo > hi:  # limits narrower than a tick: the one nearest their middle
