@@ -166,6 +166,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="agnostic2d: chance, per arm of a training window, that it takes the arm of "
         "another random window (default 0)",
     )
+    parser.add_argument(
+        "--causal-probability",
+        type=float,
+        default=None,
+        metavar="P",
+        help="agnostic2d (causal models): share of batches run causally, as stream runs the "
+        "model; the rest pool the static codes over the whole window (default 0.5)",
+    )
+    parser.add_argument(
+        "--init-from",
+        default=None,
+        metavar="CKPT",
+        help="agnostic2d: start from this keypoint checkpoint's weights and architecture "
+        "(fine-tuning; e.g. robot_retarget/data/checkpoints/agnostic2d.pt)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -215,6 +230,11 @@ def run(args: argparse.Namespace) -> int:
         raise TrainArgumentError(
             "--mirror-probability, --speed-range and --arm-mix-probability augment agnostic2d's "
             f"windows; {args.model} does not use them (drop them, or pass --model agnostic2d)"
+        )
+    if args.causal_probability is not None or args.init_from is not None:
+        raise TrainArgumentError(
+            "--causal-probability and --init-from are agnostic2d's; "
+            f"{args.model} does not use them (drop them, or pass --model agnostic2d)"
         )
     subjects = tuple(s for s in args.val_subjects.split(",") if s)
     robots = tuple(r for r in args.robots.split(",") if r)
@@ -406,6 +426,8 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
         cache_dir=args.cache_dir,
         device=args.device,
         loader_workers=args.loader_workers,
+        causal_probability=args.causal_probability,
+        init_from=args.init_from,
     )
 
     def show(p: KeypointProgress) -> None:

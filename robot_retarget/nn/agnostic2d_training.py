@@ -91,6 +91,17 @@ class KeypointTrainConfig:
     augment: MotionAugmentation = field(default_factory=MotionAugmentation)
     device: str = "cpu"  # "cuda" where a GPU is lent; batches are still rendered on the CPU
     loader_workers: int = 0  # processes rendering batches ahead of the training step
+    # Share of batches run causally, as ``stream`` runs the model (the rest with whole-window
+    # static pooling); None: half. A centred model runs every batch whole-window.
+    causal_probability: float | None = None
+    init_from: str | None = None  # a keypoint checkpoint whose weights start the run
+
+    def __post_init__(self) -> None:
+        if self.causal_probability is not None and not 0.0 <= self.causal_probability <= 1.0:
+            raise KeypointTrainError(
+                f"--causal-probability {self.causal_probability} is not in [0, 1]: pass a share of "
+                "batches, e.g. 1 (every batch causal)"
+            )
 
 
 @dataclass(frozen=True)
@@ -398,6 +409,15 @@ def train_agnostic2d(
 ) -> dict[str, Any]:
     """Train, validate, checkpoint (see the module docstring); returns a JSON-able summary.
     ``fresh``: a run already in the folder is deleted once the data have loaded."""
+    # The model first: a refused --init-from or option costs no data loading and no files.
+    torch.manual_seed(cfg.seed)
+    model = _initial_model(cfg)
+    if model.centered and cfg.causal_probability is not None:
+        raise KeypointTrainError(
+            f"--causal-probability {cfg.causal_probability}: a centred model looks ahead and "
+            "never runs causally; drop the option for centred models"
+        )
+    causal_share = 0.5 if cfg.causal_probability is None else cfg.causal_probability
     out = Path(cfg.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     dataset = load_dataset(
@@ -409,12 +429,8 @@ def train_agnostic2d(
     if fresh:
         clear_run(out)
     (out / "config.json").write_text(json.dumps({**asdict(cfg), "command": command}, indent=2))
-    torch.manual_seed(cfg.seed)
-    config = dict(cfg.model_config)
-    if "dilations" in config:
-        config["dilations"] = tuple(config["dilations"])
     device = _device(cfg.device)
-    model = KEYPOINT_MODELS[Agnostic2D.name](**config).to(device)
+    model = model.to(device)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, amsgrad=True)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(
         opt, T_max=max(cfg.steps, 1), eta_min=cfg.lr * 0.05
@@ -434,6 +450,7 @@ def train_agnostic2d(
         "command": command,
         "receptive_field_frames": model.receptive_field,
         "fps": cfg.fps,
+        **({"init_from": cfg.init_from} if cfg.init_from else {}),
     }
     log_path = out / "log.csv"
     with log_path.open("w", newline="") as fh:
@@ -448,7 +465,7 @@ def train_agnostic2d(
         for step, cpu_batch in enumerate(batches, start=1):
             model.train()
             batch = _on(cpu_batch, device)
-            causal = bool(rng.random() < 0.5) and not model.centered
+            causal = bool(rng.random() < causal_share) and not model.centered
             parts = losses(model, batch, causal=causal, cfg=cfg)
             opt.zero_grad()
             parts["total"].backward()  # type: ignore[no-untyped-call]
@@ -486,6 +503,30 @@ def train_agnostic2d(
         "best_validation": best_val,
         "data_hash": train_set.data_hash,
     }
+
+
+def _initial_model(cfg: KeypointTrainConfig) -> Agnostic2D:
+    """A new model of ``cfg.model_config``, or ``cfg.init_from``'s weights and architecture
+    (fine-tuning: a ``--model-config`` that disagrees with the checkpoint's is refused)."""
+    config = dict(cfg.model_config)
+    if "dilations" in config:
+        config["dilations"] = tuple(config["dilations"])
+    if cfg.init_from is None:
+        return KEYPOINT_MODELS[Agnostic2D.name](**config)
+    model, _ = load_keypoint_checkpoint(cfg.init_from)
+    stored = model.config()
+    differ = {
+        k: v for k, v in config.items() if stored.get(k) != (list(v) if isinstance(v, tuple) else v)
+    }
+    if differ:
+        raise KeypointTrainError(
+            f"--init-from {cfg.init_from} is a model with "
+            + ", ".join(f"{k}={stored.get(k)!r}" for k in differ)
+            + f", not {', '.join(f'{k}={v!r}' for k, v in differ.items())}: drop those "
+            "--model-config values (the checkpoint's architecture is used)"
+        )
+    model.train()
+    return model
 
 
 def _device(name: str) -> torch.device:

@@ -13,6 +13,7 @@ import pytest
 import torch
 
 from robot_retarget.cli import train_cmd
+from robot_retarget.errors import RetargetError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.synthetic import CLEAN
 from robot_retarget.keypoints.virtual_camera import VirtualCamera, heading_quat
@@ -132,3 +133,46 @@ def test_excluded_subjects_are_left_out_and_unused_options_refused(
     for option, value in (("--live-noise", "0.5"), ("--robots", "op3"), ("--log-every", "5")):
         with pytest.raises(train_cmd.TrainArgumentError, match=f"{option}: only the other"):
             train_cmd.run(parser.parse_args([*base, str(tmp_path / "y"), option, value]))
+
+
+@pytest.mark.data
+def test_a_run_fine_tunes_from_a_checkpoint_with_its_architecture(
+    shared_data_dir: Path, tmp_path: Path
+) -> None:
+    """``--init-from``: the second run starts from the first's weights (its first validation
+    is the first run's last, not a fresh model's), takes its architecture, records where it
+    started, and refuses a ``--model-config`` that disagrees; ``--causal-probability 1`` runs
+    every batch as ``stream`` does and is refused for a centred model and for other models."""
+    first = tmp_path / "first"
+    parser = _tiny_run(shared_data_dir, first)
+    start = first / "last.pt"
+    second = tmp_path / "second"
+    base = ["--model", "agnostic2d", "--data", str(shared_data_dir / "mocap"), "--quiet",
+            "--steps", "1", "--batch-size", "2", "--window", "32", "--val-every", "1",
+            "--max-frames", "240"]  # fmt: skip
+    args = parser.parse_args([*base, "--out", str(second), "--lr", "1e-12", "--init-from",
+                              str(start), "--causal-probability", "1"])  # fmt: skip
+    assert train_cmd.run(args) == 0
+    tuned, payload = load_keypoint_checkpoint(second / "last.pt")
+    original, first_payload = load_keypoint_checkpoint(start)
+    assert tuned.config() == original.config()
+    assert payload["metadata"]["init_from"] == str(start)
+    assert json.loads((second / "config.json").read_text())["causal_probability"] == 1.0
+    # A learning rate of 1e-12 leaves the weights where they started (AMSGrad's first step is
+    # about lr in size), so the validation is the first run's.
+    ours = payload["metadata"]["validation"]["direction_error_deg_causal"]
+    theirs = first_payload["metadata"]["validation"]["direction_error_deg_causal"]
+    assert ours == pytest.approx(theirs, abs=1e-3)
+    with pytest.raises(RetargetError, match="channels=16, not channels=32"):
+        train_cmd.run(parser.parse_args([*base, "--out", str(tmp_path / "x"), "--init-from",
+                                         str(start), "--model-config", "channels=32"]))  # fmt: skip
+    assert not any((tmp_path / "x").iterdir())  # refused before any file is written
+    centred = ["--model-config", "centered=true", "--causal-probability", "0.5"]
+    with pytest.raises(RetargetError, match="a centred model looks ahead"):
+        train_cmd.run(parser.parse_args([*base, "--out", str(tmp_path / "y"), *centred]))
+    with pytest.raises(RetargetError, match=r"--causal-probability 1.5 is not in \[0, 1\]"):
+        train_cmd.run(parser.parse_args([*base, "--out", str(tmp_path / "z"),
+                                         "--causal-probability", "1.5"]))  # fmt: skip
+    with pytest.raises(train_cmd.TrainArgumentError, match="agnostic2d's"):
+        train_cmd.run(parser.parse_args(["--model", "residual", "--out", str(tmp_path / "w"),
+                                         "--init-from", str(start)]))  # fmt: skip
