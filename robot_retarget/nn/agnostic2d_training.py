@@ -513,6 +513,11 @@ def _initial_model(cfg: KeypointTrainConfig) -> Agnostic2D:
         config["dilations"] = tuple(config["dilations"])
     if cfg.init_from is None:
         return KEYPOINT_MODELS[Agnostic2D.name](**config)
+    if Path(cfg.init_from).suffix == ".npz":
+        raise KeypointTrainError(
+            f"--init-from {cfg.init_from} is a numpy runtime, which holds no training state: "
+            f"pass its torch checkpoint, {Path(cfg.init_from).with_suffix('.pt')}"
+        )
     model, _ = load_keypoint_checkpoint(cfg.init_from)
     stored = model.config()
     differ = {

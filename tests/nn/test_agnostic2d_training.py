@@ -167,6 +167,9 @@ def test_a_run_fine_tunes_from_a_checkpoint_with_its_architecture(
         train_cmd.run(parser.parse_args([*base, "--out", str(tmp_path / "x"), "--init-from",
                                          str(start), "--model-config", "channels=32"]))  # fmt: skip
     assert not any((tmp_path / "x").iterdir())  # refused before any file is written
+    with pytest.raises(RetargetError, match=r"numpy runtime.*pass its torch checkpoint"):
+        train_cmd.run(parser.parse_args([*base, "--out", str(tmp_path / "v"), "--init-from",
+                                         str(first / "last.npz")]))  # fmt: skip
     centred = ["--model-config", "centered=true", "--causal-probability", "0.5"]
     with pytest.raises(RetargetError, match="a centred model looks ahead"):
         train_cmd.run(parser.parse_args([*base, "--out", str(tmp_path / "y"), *centred]))
