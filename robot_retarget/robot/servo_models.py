@@ -89,3 +89,33 @@ def baud_supported(protocol: float, baud: int) -> bool:
         return False
     n = round(2_000_000 / baud) - 1
     return 0 <= n <= 254 and abs(2_000_000 / (n + 1) - baud) <= _BAUD_TOLERANCE * baud
+
+
+_PROTOCOL1_SPECIAL_FIRST_VALUE = 250  # MX: 250, 251, 252 → 2.25, 2.5, 3 Mbps
+
+
+def baud_register_value(protocol: float, baud: int) -> int:
+    """The Baud Rate register value that sets servos speaking ``protocol`` to ``baud``
+    (ValueError where none does: see :func:`baud_supported`)."""
+    if not baud_supported(protocol, baud):
+        raise ValueError(f"no Protocol {protocol} baud rate register value gives {baud} bps")
+    if protocol == 2.0:
+        return _PROTOCOL2_BAUDS.index(baud)
+    if baud in _PROTOCOL1_SPECIAL:
+        return _PROTOCOL1_SPECIAL_FIRST_VALUE + _PROTOCOL1_SPECIAL.index(baud)
+    return round(2_000_000 / baud) - 1
+
+
+def register_baud(protocol: float, value: int) -> float | None:
+    """The bit rate a Baud Rate register ``value`` sets (None: a value the servo rejects)."""
+    if protocol == 2.0:
+        return float(_PROTOCOL2_BAUDS[value]) if 0 <= value < len(_PROTOCOL2_BAUDS) else None
+    special = value - _PROTOCOL1_SPECIAL_FIRST_VALUE
+    if 0 <= special < len(_PROTOCOL1_SPECIAL):
+        return float(_PROTOCOL1_SPECIAL[special])
+    return 2_000_000 / (value + 1) if 0 <= value <= 254 else None
+
+
+def bauds_match(host_baud: float, servo_baud: float) -> bool:
+    """Whether a servo at ``servo_baud`` understands a host at ``host_baud`` (3 % apart)."""
+    return abs(host_baud - servo_baud) <= _BAUD_TOLERANCE * servo_baud

@@ -17,6 +17,19 @@ to the servo it is a header inside a packet, so the frame it was in is malformed
 packet with a bad CRC: the servo never framed a packet it could answer (not even with a CRC
 error status) and waits for the next header. The client times out; nothing is written.
 
+What the servos hear and answer, as on a real bus:
+
+- **Baud rate.** Each servo is set to the bus's rate (its Baud Rate register) and hears only a
+  client within 3 % of its own rate, read from the pty's terminal settings
+  (:mod:`robot_retarget.sim.line_speed`); a write to Baud Rate moves it to the new rate after
+  its reply. A client that never set a speed is heard by all.
+- **ID.** A servo answers to its ID register: a write there moves it. Two servos on one ID both
+  act on what is sent to it and answer at once, so their replies collide (a corrupt packet).
+- **Status Return Level.** 0: a status for PING only; 1: for PING and reads; 2: for all.
+- **Status packets** on the line (instruction 0x55, another servo's reply) are not executed.
+- A packet whose answer could not be built (a reply longer than a packet can carry) gets no
+  reply and is logged; nothing a client sends stops the simulator.
+
 Runs in a background thread (tests) or standalone::
 
     python -m robot_retarget.sim.dxl_bus --robot op3          # first line: PORT /dev/pts/N
@@ -40,13 +53,31 @@ from types import FrameType, TracebackType
 
 from robot_retarget.hardware import protocol as p
 from robot_retarget.robot.config import RobotConfig
-from robot_retarget.sim.servo import OK, SimServo
+from robot_retarget.robot.servo_models import (
+    baud_register_value,
+    baud_supported,
+    bauds_match,
+    register_baud,
+)
+from robot_retarget.sim.line_speed import client_baud
+from robot_retarget.sim.servo import OK, RESULT_FAIL, SimServo
 
 _INCOMPLETE_PACKET_TIMEOUT_S = 0.05
 # Stray bytes with a false Protocol 1.0 and 2.0 header in them, as a noisy line might deliver.
 _LINE_NOISE = bytes((0x00, 0xFF, 0x13, 0xFF, 0xFF, 0xFD, 0x00, 0x7F, 0xFF, 0xFF, 0x07))
 USB2AX_SYNC_READ = 0x84  # USB2AX's own instruction (Protocol 1.0 has no Sync Read)
 USB2AX_ID = 0xFD
+_FACTORY_RESET = 0x06
+_CLEAR = 0x10
+_MAX_V1_PARAMS = 0xFF - 2  # LEN = params + 2 must fit one byte
+# Instructions a servo at Status Return Level 1 still answers (reads); at 0 only PING.
+_READS = frozenset(
+    (p.INST_READ, p.INST_SYNC_READ, p.INST_BULK_READ, p.INST_FAST_SYNC_READ,
+     p.INST_FAST_BULK_READ, USB2AX_SYNC_READ)
+)  # fmt: skip
+_WRITES = frozenset(
+    (p.INST_WRITE, p.INST_ACTION, p.INST_SYNC_WRITE, p.INST_BULK_WRITE, _FACTORY_RESET)
+)  # fmt: skip
 
 
 @dataclass
@@ -90,14 +121,23 @@ class SimulatedBus:
         if protocol not in (1.0, 2.0):
             raise ValueError(f"protocol must be 1.0 or 2.0, got {protocol!r}")
         self.protocol = float(protocol)
-        self.servos: dict[int, SimServo] = {}
-        for s in servos:
+        members = list(servos)
+        for s in members:
             if s.protocol != self.protocol:
                 raise ValueError(
                     f"servo {s.servo_id} ({s.table.model}) speaks Protocol {s.protocol}, "
                     f"the bus Protocol {self.protocol}"
                 )
-            self.servos[s.servo_id] = s
+            if baud_supported(self.protocol, baud_rate):  # the servos were set to the bus's rate
+                s._put("baud_rate", baud_register_value(self.protocol, baud_rate))
+        # The bus's servos by the ID they answer to (tests add and remove servos here); a servo
+        # moved onto an ID another one holds waits in _twins (see _rekey).
+        self.servos: dict[int, SimServo] = {}
+        self._twins: list[SimServo] = members
+        self._on_id: dict[int, list[SimServo]] = {}
+        self._rekey()
+        self._heard = self._on_id  # the servos that hear the packet being executed
+        self._as_id: int | None = None  # the ID a unicast packet addressed
         self.baud_rate = baud_rate
         self.wire_time = wire_time
         # Protocol 1.0 through a USB2AX adapter, as Poppy's own software expects: the adapter
@@ -134,7 +174,40 @@ class SimulatedBus:
         # master read EIO and the bus could not be reopened by the next client.
         self._master, self._slave = master, slave
         self.port = os.ttyname(slave)
+        self._opened_baud = client_baud(slave)  # the pty's own; a client changes it
         return self.port
+
+    def _client_baud(self) -> int | None:
+        """The rate the client set on the port (None: none set, or unreadable)."""
+        if self._slave is None:
+            return None
+        baud = client_baud(self._slave)
+        return None if baud == self._opened_baud else baud
+
+    def _rekey(self) -> None:
+        """Map IDs to servos from their ID registers (before each packet, and after a write:
+        an ID may have moved)."""
+        listed = list(self.servos.values())
+        members = listed + [t for t in self._twins if all(t is not m for m in listed)]
+        on_id: dict[int, list[SimServo]] = {}
+        for s in members:
+            on_id.setdefault(s.servo_id, []).append(s)
+        self._on_id = on_id
+        self.servos = {i: group[0] for i, group in sorted(on_id.items())}
+        self._twins = [s for group in on_id.values() for s in group[1:]]
+
+    def _hearing(self) -> dict[int, list[SimServo]]:
+        """The servos that understand the client: at its baud rate (all if it set none)."""
+        self._rekey()
+        baud = self._client_baud()
+        if baud is None:
+            return self._on_id
+        heard: dict[int, list[SimServo]] = {}
+        for i, group in self._on_id.items():
+            ok = [s for s in group if _hears(s, baud)]
+            if ok:
+                heard[i] = ok
+        return heard
 
     def stop(self) -> None:
         self._stop.set()
@@ -247,7 +320,11 @@ class SimulatedBus:
                 continue
             self.log.packets.append(raw)
             with self._lock:
-                replies = self._execute(packet, now)
+                try:
+                    replies = self._execute(packet, now)
+                except Exception as exc:  # a client's packet must never stop the bus
+                    self.log.rejected.append((raw, f"no reply could be built: {exc}"))
+                    continue
             self._send(replies, len(raw), now, sink)
 
     def _reply_checksum_error(self, raw: bytes, now: float, sink: bytearray | None) -> None:
@@ -256,9 +333,10 @@ class SimulatedBus:
         if b"\xff\xff\xfd" in raw[7:-2] and self.protocol == 2.0:
             return
         sid = raw[4] if self.protocol == 2.0 else raw[2]
-        if sid not in self.servos:
+        heard = self._hearing().get(sid)
+        if not heard:
             return
-        servo = self.servos[sid]
+        servo = heard[0]
         if self.protocol == 2.0:
             reply = p.build_status_v2(sid, p.ERR2_CRC | (0x80 if servo.hardware_error else 0))
         else:
@@ -296,7 +374,7 @@ class SimulatedBus:
                 2e-6 * self.servos[sid].get("return_delay_time")
                 for sid, _ in replies
                 if sid in self.servos
-            )
+            )  # fmt: skip
             done = start + (n_in + len(out)) * byte_s + delay_s
             self._bus_free_at = done
             _sleep_until(done, self._clock)
@@ -320,18 +398,37 @@ class SimulatedBus:
 
     def _execute(self, pkt: p.Packet, now: float) -> list[tuple[int, bytes]]:
         self._advance(now)
-        if self.protocol == 2.0:
-            return self._execute_v2(pkt)
-        return self._execute_v1(pkt)
+        if pkt.is_status:
+            return []  # another servo's reply on the line (Protocol 2.0): nothing to do
+        self._heard = self._hearing()
+        self._as_id = None if pkt.servo_id == p.BROADCAST_ID else pkt.servo_id
+        levels = {i: g[0].get("status_return_level") for i, g in self._heard.items()}
+        try:
+            replies = self._execute_v2(pkt) if self.protocol == 2.0 else self._execute_v1(pkt)
+        finally:
+            self._heard, self._as_id = self._on_id, None
+            if pkt.code in _WRITES:
+                self._rekey()
+        if pkt.code != p.INST_PING:
+            level = 1 if pkt.code in _READS else 2
+            replies = [(i, r) for i, r in replies if levels.get(i, 2) >= level]
+        return _collided(replies)
+
+    def _targets(self, sid: int) -> list[SimServo]:
+        if sid == p.BROADCAST_ID:
+            return [s for i in sorted(self._heard) for s in self._heard[i]]
+        return list(self._heard.get(sid, ()))
+
+    def _listed(self, sid: int) -> list[SimServo]:
+        """The servos on ``sid`` that hear the packet (a Sync / Bulk instruction's list)."""
+        return list(self._heard.get(sid, ())) if sid != p.BROADCAST_ID else []
 
     def _status(self, servo: SimServo, code: int, params: bytes = b"") -> tuple[int, bytes]:
+        # A unicast reply comes from the ID addressed, even where the write moved the servo.
+        sid = servo.servo_id if self._as_id is None else self._as_id
         if self.protocol == 2.0:
-            return servo.servo_id, p.build_status_v2(
-                servo.servo_id, servo.status_error_v2(code), params
-            )
-        return servo.servo_id, p.build_status_v1(
-            servo.servo_id, servo.status_error_v1(code), params
-        )
+            return sid, p.build_status_v2(sid, servo.status_error_v2(code), params)
+        return sid, p.build_status_v1(sid, servo.status_error_v1(code), params)
 
     def _instruction_error(self, servo: SimServo) -> tuple[int, bytes]:
         if self.protocol == 2.0:
@@ -339,12 +436,6 @@ class SimulatedBus:
             return servo.servo_id, p.build_status_v2(servo.servo_id, err)
         err = p.ERR1_INSTRUCTION | (servo.hardware_error & 0x25)
         return servo.servo_id, p.build_status_v1(servo.servo_id, err)
-
-    def _targets(self, sid: int) -> list[SimServo]:
-        if sid == p.BROADCAST_ID:
-            return [self.servos[k] for k in sorted(self.servos)]
-        servo = self.servos.get(sid)
-        return [] if servo is None else [servo]
 
     def _execute_v2(self, pkt: p.Packet) -> list[tuple[int, bytes]]:
         inst, prm, sid = pkt.code, pkt.params, pkt.servo_id
@@ -381,12 +472,35 @@ class SimulatedBus:
             return replies
         if inst == p.INST_ACTION:
             for s in self._targets(sid):
-                if s.registered is not None:
-                    s.write(*s.registered)
-                    s.registered = None
-                    s._put("registered_instruction", 0)
+                if s.registered is None:  # e-Manual: Action without a Reg Write
+                    if not bcast:
+                        replies.append(self._instruction_error(s))
+                    continue
+                s.write(*s.registered)
+                s.registered = None
+                s._put("registered_instruction", 0)
                 if not bcast:
                     replies.append(self._status(s, OK))
+            return replies
+        if inst == _FACTORY_RESET and prm[:1] in (b"\xff", b"\x01", b"\x02"):
+            # 0xFF: everything; 0x01: all but the ID; 0x02: all but the ID and baud rate.
+            # Broadcast resets only with 0x01 / 0x02 (e-Manual: 0xFF is refused there).
+            if bcast and prm[0] == 0xFF:
+                return replies
+            for s in self._targets(sid):
+                if not bcast:
+                    replies.append(self._status(s, OK))
+                s.factory_reset(keep_id=prm[0] != 0xFF, keep_baud=prm[0] == 0x02)
+            return replies
+        if inst == _CLEAR and prm[:1] == b"\x01":
+            # Clear multi-turn revolutions: present position back within one turn; torque off
+            # only (e-Manual: refused with torque on, or while moving).
+            for s in self._targets(sid):
+                code = OK if not s.torque_on else RESULT_FAIL
+                if code == OK:
+                    s.clear_turns()
+                if not bcast:
+                    replies.append(self._status(s, code))
             return replies
         if inst == p.INST_REBOOT:
             for s in self._targets(sid):
@@ -396,7 +510,7 @@ class SimulatedBus:
             return replies
         if inst in (p.INST_SYNC_READ, p.INST_FAST_SYNC_READ) and bcast and len(prm) >= 4:
             addr, length = prm[0] | prm[1] << 8, prm[2] | prm[3] << 8
-            listed = [self.servos[i] for i in prm[4:] if i in self.servos]
+            listed = [s for i in prm[4:] for s in self._listed(i)]
             if inst == p.INST_SYNC_READ:
                 for s in listed:
                     code, data = s.read(addr, length)
@@ -405,33 +519,34 @@ class SimulatedBus:
             return self._fast_read([(s, addr, length) for s in listed])
         if inst == p.INST_FAST_BULK_READ and bcast:
             items = [
-                (self.servos[prm[k]], prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8)
+                (s, prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8)
                 for k in range(0, len(prm) - 4, 5)
-                if prm[k] in self.servos
+                for s in self._listed(prm[k])
             ]
             return self._fast_read(items)
         if inst == p.INST_SYNC_WRITE and bcast and len(prm) >= 4:
             addr, length = prm[0] | prm[1] << 8, prm[2] | prm[3] << 8
             body = prm[4:]
             for k in range(0, len(body) - length, length + 1):
-                servo = self.servos.get(body[k])
-                if servo is not None:
+                for servo in self._listed(body[k]):
                     servo.write(addr, body[k + 1 : k + 1 + length])
             return replies
         if inst == p.INST_BULK_READ and bcast:
             for k in range(0, len(prm) - 4, 5):
-                servo = self.servos.get(prm[k])
-                if servo is None:
+                listed = self._listed(prm[k])
+                if not listed:
                     break  # each reply waits for the one before it: the chain ends here
-                code, data = servo.read(prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8)
-                replies.append(self._status(servo, code, data))
+                for servo in listed:
+                    code, data = servo.read(
+                        prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8
+                    )
+                    replies.append(self._status(servo, code, data))
             return replies
         if inst == p.INST_BULK_WRITE and bcast:
             k = 0
             while k + 5 <= len(prm):
                 addr, length = prm[k + 1] | prm[k + 2] << 8, prm[k + 3] | prm[k + 4] << 8
-                servo = self.servos.get(prm[k])
-                if servo is not None:
+                for servo in self._listed(prm[k]):
                     servo.write(addr, prm[k + 5 : k + 5 + length])
                 k += 5 + length
             return replies
@@ -445,7 +560,10 @@ class SimulatedBus:
         XM430): nothing if it is the first, else a packet cut short (the client times out)."""
         if not items:
             return []
-        total = 1 + sum(length + 4 for _, _, length in items)
+        total = 1 + sum(length + 4 for _, _, length in items) + 2  # + the instruction's CRC
+        if total > 0xFFFF:
+            raise ValueError(f"a Fast Read reply of {total} bytes does not fit one packet")
+        total -= 2
         pkt = bytearray(p.HEADER_V2 + bytes((p.BROADCAST_ID, total & 0xFF, total >> 8, 0x55)))
         crc = p.crc16(pkt)  # carried along: each part's CRC covers everything before it
         for k, (s, addr, length) in enumerate(items):
@@ -486,13 +604,20 @@ class SimulatedBus:
                     s.write(*s.registered)
                     s.registered = None
                     s._put("registered", 0)
+                if not bcast:  # a unicast Action is answered (Protocol 1.0 e-Manual)
+                    replies.append(self._status(s, OK))
+            return replies
+        if inst == _FACTORY_RESET and not prm:
+            for s in self._targets(sid):  # Protocol 1.0: everything, the ID to 1 too
+                if not bcast:
+                    replies.append(self._status(s, OK))
+                s.factory_reset(keep_id=False, keep_baud=False)
             return replies
         if inst == p.INST_SYNC_WRITE and bcast and len(prm) >= 2:
             addr, length = prm[0], prm[1]
             body = prm[2:]
             for k in range(0, len(body) - length, length + 1):
-                servo = self.servos.get(body[k])
-                if servo is not None:
+                for servo in self._listed(body[k]):
                     servo.write(addr, body[k + 1 : k + 1 + length])
             return replies
         if inst == USB2AX_SYNC_READ and bcast and self.usb2ax and len(prm) >= 3:
@@ -500,13 +625,14 @@ class SimulatedBus:
         if inst == p.INST_BULK_READ and bcast and len(prm) >= 1:
             for k in range(1, len(prm) - 2, 3):
                 length, bid, addr = prm[k], prm[k + 1], prm[k + 2]
-                servo = self.servos.get(bid)
-                if servo is None or not servo.table.bulk_read:
+                listed = self._listed(bid)
+                if not listed or not all(s.table.bulk_read for s in listed):
                     # Each module answers after the one listed before it (MX e-Manual, Bulk
                     # Read): a missing servo or an AX (no Bulk Read) ends the reply chain.
                     break
-                code, data = servo.read(addr, length)
-                replies.append(self._status(servo, code, data))
+                for servo in listed:
+                    code, data = servo.read(addr, length)
+                    replies.append(self._status(servo, code, data))
             return replies
         return [self._instruction_error(s) for s in self._targets(sid) if not bcast]
 
@@ -515,14 +641,36 @@ class SimulatedBus:
         the data concatenated in list order; a missing servo leaves it silent (a timeout)."""
         data = bytearray()
         for sid in ids:
-            servo = self.servos.get(sid)
-            if servo is None:
-                return []
-            code, chunk = servo.read(addr, length)
+            listed = self._listed(sid)
+            if len(listed) != 1:
+                return []  # missing, or two servos answering at once: the adapter times out
+            code, chunk = listed[0].read(addr, length)
             if code != OK:
                 return []
             data += chunk
+        if len(data) > _MAX_V1_PARAMS:
+            raise ValueError(f"{len(data)} bytes of data do not fit one Protocol 1.0 packet")
         return [(USB2AX_ID, p.build_status_v1(USB2AX_ID, 0, bytes(data)))]
+
+
+def _hears(servo: SimServo, host_baud: int) -> bool:
+    rate = register_baud(servo.protocol, servo.get("baud_rate"))
+    return rate is not None and bauds_match(host_baud, rate)
+
+
+def _collided(replies: list[tuple[int, bytes]]) -> list[tuple[int, bytes]]:
+    """Replies of servos sharing an ID go out at once: one corrupt packet in their place."""
+    seen: dict[int, int] = {}
+    out: list[tuple[int, bytes]] = []
+    for sid, reply in replies:
+        if sid in seen:
+            k = seen[sid]
+            first = out[k][1]
+            out[k] = (sid, first[:-1] + bytes((first[-1] ^ reply[-1] ^ 0xA5,)))
+            continue
+        seen[sid] = len(out)
+        out.append((sid, reply))
+    return out
 
 
 def _sleep_until(deadline: float, clock: Callable[[], float]) -> None:

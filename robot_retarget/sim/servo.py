@@ -19,8 +19,15 @@ map. In Position Control Mode (single turn) a Homing Offset outside ±1024 is ig
 e-Manual states. Min/Max Position Limit and CW/CCW Angle Limit bound Goal Position in that user
 frame: a goal outside them is refused (Protocol 1.0: the Angle Limit error bit; Protocol 2.0:
 Data Limit Error) and the servo keeps its previous goal, which under Sync Write (no status
-packet) nobody hears about. On Protocol 1.0 models (MX, AX) Lock = 1 makes the EEPROM area
-read-only, and Lock itself cannot be cleared, until the servo is powered off (a new SimServo).
+packet) nobody hears about. The EEPROM area is locked while torque is on on Protocol 2.0
+models only (the XM430 e-Manual's rule; the AX-12A and MX Protocol 1.0 pages have none, and
+pypot writes angle limits to servos holding torque). On Protocol 1.0 models (MX, AX) Lock = 1
+makes the EEPROM area read-only, and Lock itself cannot be cleared, until the servo is powered
+off (a new SimServo). After a hardware-error shutdown a Protocol 2.0 servo keeps its torque off
+until rebooted ("REBOOT is the only method to reset Torque Enable to 1"). A reboot
+re-initialises the RAM area; a factory reset the EEPROM area too (ID and baud rate kept as the
+instruction's parameter says). With Drive Mode reverse, Present Velocity turns with Present
+Position.
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ OK = 0
 ACCESS_ERROR = 1
 DATA_LIMIT_ERROR = 2
 DATA_LENGTH_ERROR = 3
+RESULT_FAIL = 4  # Protocol 2.0 "Result Fail": the instruction could not be carried out
 
 _POSITION_MODE = 3  # XM430 Operating Mode: position control within one turn
 _EXTENDED_POSITION_MODE = 4
@@ -50,7 +58,6 @@ class SimServo:
     Hardware Error Status; Protocol 1.0: status error bits)."""
 
     def __init__(self, servo_id: int, model: str, *, time_constant_s: float = 0.01) -> None:
-        self.servo_id = servo_id
         self.model = servo_model(model)
         self.table: ControlTable = control_table(model)
         self.protocol = self.table.protocol
@@ -68,6 +75,11 @@ class SimServo:
             time_constant_s=time_constant_s,
         )
         self.writes = 0  # accepted write transactions (for tests)
+
+    @property
+    def servo_id(self) -> int:
+        """The ID it answers to: its ID register (a write there moves it to another ID)."""
+        return self.get("id")
 
     # ----- registers -------------------------------------------------------------------------
     def get(self, name: str) -> int:
@@ -119,7 +131,7 @@ class SimServo:
                 return DATA_LENGTH_ERROR  # would split a register
             if not reg.writable:
                 return ACCESS_ERROR
-            if reg.eeprom and self.torque_on:
+            if reg.eeprom and self.torque_on and self.protocol == 2.0:
                 return ACCESS_ERROR  # EEPROM is locked while torque is on
             if self._locked() and (reg.eeprom or reg.name == "lock"):
                 return ACCESS_ERROR  # Lock = 1: EEPROM read-only until power-off
@@ -133,6 +145,8 @@ class SimServo:
                 if not lo <= value <= hi:
                     return DATA_LIMIT_ERROR
         self.memory[address:end] = data  # a goal is stored; the horn moves only with torque on
+        if self.hardware_error and self.protocol == 2.0 and self.get("torque_enable"):
+            self._put("torque_enable", 0)  # after a shutdown only a reboot re-enables torque
         self.writes += 1
         return OK
 
@@ -185,12 +199,21 @@ class SimServo:
         vel_units = round(self.dynamics.velocity_rad_s / self.table.velocity_unit_rad_s)
         moving = int(abs(vel_units) > 0)
         if self.protocol == 2.0:
-            self._put("present_velocity", vel_units)
+            # The horn's velocity in the user's frame: reverse mode turns it with the position.
+            self._put("present_velocity", -vel_units if self._reversed() else vel_units)
             self._put("hardware_error_status", self.hardware_error)
         else:
             magnitude = min(abs(vel_units), 1023)
             self._put("present_speed", magnitude | (1024 if vel_units < 0 else 0))
         self._put("moving", moving)
+
+    def clear_turns(self) -> None:
+        """Clear (multi-turn): Present Position back within one turn, 0–4095; the horn stays."""
+        turns = self.get("present_position") // self.model.ticks_per_range
+        if turns:
+            turn_rad = self.model.ticks_per_range * self.model.rad_per_tick
+            self.dynamics.q_rad -= (-1.0 if self._reversed() else 1.0) * turns * turn_rad
+            self.set_present_rad(self.dynamics.q_rad)
 
     @property
     def hardware_error_latched(self) -> bool:
@@ -205,11 +228,28 @@ class SimServo:
             self._put("hardware_error_status", bits)
 
     def reboot(self) -> None:
-        """Clears the hardware error and torque, as a reboot does."""
+        """Clears the hardware error and re-initialises the RAM area (torque off, LED off,
+        profiles and gains at their defaults); the goal is where the horn is."""
         self.hardware_error = 0
-        self._put("torque_enable", 0)
-        if self.protocol == 2.0:
-            self._put("hardware_error_status", 0)
+        for reg in self.table.registers.values():
+            if not reg.eeprom:
+                self.memory[reg.address : reg.address + reg.size] = le_bytes(reg.default, reg.size)
+        self.set_present_rad(self.dynamics.q_rad)
+        self.dynamics.velocity_rad_s = 0.0
+
+    def factory_reset(self, *, keep_id: bool, keep_baud: bool) -> None:
+        """Every register back to its factory default (the ID and baud rate kept if asked), as
+        the Factory Reset instruction does; then a reboot."""
+        kept = {
+            name: self.get(name)
+            for name, keep in (("id", keep_id), ("baud_rate", keep_baud))
+            if keep
+        }
+        for reg in self.table.registers.values():
+            self.memory[reg.address : reg.address + reg.size] = le_bytes(reg.default, reg.size)
+        for name, value in kept.items():
+            self._put(name, value)
+        self.reboot()
 
     @property
     def goal_rad(self) -> float:
@@ -231,5 +271,11 @@ class SimServo:
 
     def status_error_v2(self, code: int) -> int:
         """Protocol 2.0 error field: an error number and the alert bit for hardware errors."""
-        number = {OK: 0, ACCESS_ERROR: 0x07, DATA_LIMIT_ERROR: 0x06, DATA_LENGTH_ERROR: 0x05}[code]
+        number = {
+            OK: 0,
+            RESULT_FAIL: 0x01,
+            ACCESS_ERROR: 0x07,
+            DATA_LIMIT_ERROR: 0x06,
+            DATA_LENGTH_ERROR: 0x05,
+        }[code]
         return number | (0x80 if self.hardware_error else 0)

@@ -102,7 +102,9 @@ def test_protocol1_instructions(v1_client: Client, v1_bus: SimulatedBus) -> None
     assert ph.read2ByteTxRx(port, 11, 30) == (1000, OK, 0)
     assert ph.write2ByteTxRx(port, 36, 30, 2000) == (OK, p.ERR1_ANGLE_LIMIT)  # AX: 0–1023
     assert ph.write1ByteTxRx(port, 11, 24, 1) == (OK, 0)
-    assert ph.write1ByteTxRx(port, 11, 5, 0) == (OK, p.ERR1_RANGE)  # EEPROM, torque on
+    # Protocol 1.0 servos take EEPROM writes with torque on (only Lock = 1 refuses them).
+    assert ph.write1ByteTxRx(port, 11, 5, 0) == (OK, 0)
+    assert ph.read1ByteTxRx(port, 11, 5) == (0, OK, 0)
     gsw = sdk.GroupSyncWrite(port, ph, 30, 2)
     gsw.addParam(13, [0x10, 0x01])
     gsw.addParam(36, [0x00, 0x01])

@@ -1,0 +1,178 @@
+"""What the simulated servos hear and answer, as real ones do: their baud rate, their ID
+register, their Status Return Level; the instructions and register rules of the e-Manuals
+(factory reset, clear, reboot, a unicast Protocol 1.0 Action, the shutdown); and no packet a
+client sends stops the simulator."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import dynamixel_sdk as sdk
+import pytest
+
+from robot_retarget.hardware import protocol as p
+from robot_retarget.sim.dxl_bus import USB2AX_SYNC_READ, SimulatedBus
+from robot_retarget.sim.servo import SimServo
+
+Client = tuple[Any, Any]
+OK = sdk.COMM_SUCCESS
+TIMEOUT = sdk.COMM_RX_TIMEOUT
+le = p.le_bytes
+
+
+def _replies_v2(raw: bytes) -> list[p.Packet]:
+    out = []
+    while raw:
+        raw = raw[raw.find(p.HEADER_V2) :]
+        n = p.packet_length_v2(raw)
+        assert n is not None
+        out.append(p.parse_v2(raw[:n]))
+        raw = raw[n:]
+    return out
+
+
+def test_a_reply_too_long_for_a_packet_is_not_sent_and_the_bus_goes_on(
+    v2_bus: SimulatedBus, v1_client: Client, v1_bus: SimulatedBus
+) -> None:
+    """A Fast Sync Read of 3 × 30000 bytes (the reply's length field holds 65535) and a USB2AX
+    Sync Read of 4 × 70 bytes (a Protocol 1.0 packet holds 253) once killed the serving
+    thread; now they get no reply, are logged, and the next packet is answered."""
+    fast = p.build_v2(p.BROADCAST_ID, p.INST_FAST_SYNC_READ, le(0, 2) + le(30000, 2) + b"\1\2\5")
+    assert v2_bus.feed(fast) == b""
+    assert "does not fit one packet" in v2_bus.log.rejected[-1][1]
+    assert [r.servo_id for r in _replies_v2(v2_bus.feed(p.build_v2(1, p.INST_PING, b"")))] == [1]
+    port, ph = v1_client
+    v1_bus.usb2ax = True
+    long_read = p.build_v1(p.BROADCAST_ID, USB2AX_SYNC_READ, bytes((0, 70, 11, 13, 36, 11)))
+    port.writePort(long_read)
+    v1_bus.settle()
+    assert "do not fit one Protocol 1.0 packet" in v1_bus.log.rejected[-1][1]
+    assert ph.ping(port, 13) == (310, OK, 0)
+
+
+@pytest.mark.parametrize("client", ["v2_client", "v1_client"])
+def test_writing_the_id_moves_the_servo(client: str, request: pytest.FixtureRequest) -> None:
+    """The reply comes from the ID addressed; after it the servo answers at its new ID only
+    (LeRobot's motor setup writes the ID, then the baud rate at the new ID)."""
+    port, ph = request.getfixturevalue(client)
+    old = 5 if client == "v2_client" else 13
+    address = 7 if client == "v2_client" else 3
+    assert ph.write1ByteTxRx(port, old, address, 42) == (OK, 0)
+    assert ph.ping(port, 42)[1:] == (OK, 0)
+    assert ph.ping(port, old)[1] == TIMEOUT
+    assert ph.read1ByteTxRx(port, 42, address) == (42, OK, 0)
+
+
+def test_two_servos_on_one_id_answer_at_once(v2_client: Client, v2_bus: SimulatedBus) -> None:
+    """Both act on a write to the shared ID; their replies collide into a corrupt packet."""
+    port, ph = v2_client
+    assert ph.write1ByteTxRx(port, 5, 7, 2) == (OK, 0)  # 5 → 2, where a servo already is
+    assert ph.ping(port, 2)[1] != OK
+    twins = [s for s in (*v2_bus.servos.values(), *v2_bus._twins) if s.servo_id == 2]
+    assert len(twins) == 2
+    ph.write1ByteTxRx(port, 2, 65, 1)  # LED on, both
+    v2_bus.settle()
+    assert [s.get("led") for s in twins] == [1, 1]
+
+
+def test_a_servo_hears_only_a_client_at_its_baud_rate(v2_bus: SimulatedBus) -> None:
+    """The bus's servos are set to its rate (Baud Rate 4 = 2 Mbps on an XM430); a client at
+    57600 gets nothing; a servo moved to 1 Mbps answers there and no longer at 2 Mbps."""
+    assert {s.get("baud_rate") for s in v2_bus.servos.values()} == {4}
+    port = sdk.PortHandler(v2_bus.port)
+    assert port.openPort()
+    ph = sdk.PacketHandler(2.0)
+    try:
+        assert port.setBaudRate(57600)
+        assert ph.ping(port, 1)[1] == TIMEOUT
+        assert port.setBaudRate(2_000_000)
+        assert ph.write1ByteTxRx(port, 1, 8, 3) == (OK, 0)  # answered at the old rate
+        assert ph.ping(port, 1)[1] == TIMEOUT
+        assert ph.ping(port, 2)[1:] == (OK, 0)
+        assert port.setBaudRate(1_000_000)
+        assert ph.ping(port, 1)[1:] == (OK, 0)
+        assert ph.ping(port, 2)[1] == TIMEOUT
+    finally:
+        port.closePort()
+
+
+@pytest.mark.parametrize("client", ["v2_client", "v1_client"])
+def test_status_return_level(client: str, request: pytest.FixtureRequest) -> None:
+    """0: a status for PING only; 1: for PING and READ; 2: for every instruction."""
+    port, ph = request.getfixturevalue(client)
+    sid, srl, led = (1, 68, 65) if client == "v2_client" else (11, 16, 25)
+    torque = 64 if client == "v2_client" else 24
+    if client == "v2_client":
+        assert ph.write1ByteTxRx(port, sid, torque, 0) == (OK, 0)
+    assert ph.write1ByteTxRx(port, sid, srl, 1) == (OK, 0)  # answered at the level before
+    assert ph.read1ByteTxRx(port, sid, srl) == (1, OK, 0)
+    assert ph.write1ByteTxRx(port, sid, led, 1)[0] == TIMEOUT  # written, not answered
+    assert ph.read1ByteTxRx(port, sid, led) == (1, OK, 0)
+    ph.write1ByteTxOnly(port, sid, srl, 0)
+    assert ph.read1ByteTxRx(port, sid, led)[1] == TIMEOUT
+    # PING is still answered (the SDK's Protocol 1.0 ping also reads the model number, which
+    # a real servo at level 0 would not answer either: so the ping packet itself here).
+    bus = request.getfixturevalue(client.replace("client", "bus"))
+    build = p.build_v2 if client == "v2_client" else p.build_v1
+    assert bus.feed(build(sid, p.INST_PING, b""))
+
+
+def test_shutdown_keeps_torque_off_until_a_reboot_which_resets_the_ram(
+    v2_client: Client, v2_bus: SimulatedBus
+) -> None:
+    port, ph = v2_client
+    assert ph.write4ByteTxRx(port, 2, 112, 50) == (OK, 0)  # profile velocity (RAM)
+    v2_bus.servos[2].inject_hardware_error(0x20)
+    assert ph.write1ByteTxRx(port, 2, 64, 1) == (OK, p.ERR2_ALERT)
+    assert ph.read1ByteTxRx(port, 2, 64)[0] == 0  # only a reboot re-enables torque
+    assert ph.reboot(port, 2)[0] == OK
+    v2_bus.settle()
+    assert ph.read4ByteTxRx(port, 2, 112) == (0, OK, 0)
+    assert ph.write1ByteTxRx(port, 2, 64, 1) == (OK, 0)
+    assert ph.read1ByteTxRx(port, 2, 64) == (1, OK, 0)
+
+
+def test_reverse_mode_turns_present_velocity_with_present_position() -> None:
+    t = [0.0]
+    servo = SimServo(1, "XM430-W350")
+    bus = SimulatedBus([servo], protocol=2.0, clock=lambda: t[0])
+    bus.feed(p.build_v2(1, p.INST_WRITE, le(10, 2) + b"\x01"))  # drive mode: reverse
+    bus.feed(p.build_v2(1, p.INST_WRITE, le(64, 2) + b"\x01"))
+    start = servo.get("present_position")
+    bus.feed(p.build_v2(1, p.INST_WRITE, le(116, 2) + le(start + 400, 4)))
+    t[0] += 0.02
+    bus.feed(p.build_v2(1, p.INST_PING, b""))
+    assert servo.get("present_position") > start
+    assert servo.get("present_velocity") > 0
+
+
+def test_factory_reset_clear_and_action_as_the_e_manual_says(
+    v2_client: Client, v1_client: Client, v2_bus: SimulatedBus
+) -> None:
+    port, ph = v2_client
+    assert ph.write1ByteTxRx(port, 1, 9, 0) == (OK, 0)  # return delay 0
+    assert ph.factoryReset(port, 1, 0x02) == (OK, 0)  # all but ID and baud rate
+    v2_bus.settle()
+    assert ph.read1ByteTxRx(port, 1, 9) == (250, OK, 0)
+    assert ph.read1ByteTxRx(port, 1, 8) == (4, OK, 0)
+    assert ph.factoryReset(port, 5, 0x01) == (OK, 0)  # baud rate too: 57600 now
+    v2_bus.settle()
+    assert ph.ping(port, 5)[1] == TIMEOUT
+    assert ph.clearMultiTurn(port, 2) == (OK, 0)
+    (reply,) = _replies_v2(v2_bus.feed(p.build_v2(2, p.INST_ACTION, b"")))
+    assert reply.code == p.ERR2_INSTRUCTION  # Action with nothing registered
+    port1, ph1 = v1_client
+    assert ph1.regWriteTxRx(port1, 36, 30, 2, [0x58, 0x02]) == (OK, 0)
+    assert ph1.action(port1, 36) == OK  # a unicast Action is answered on Protocol 1.0
+    assert ph1.read2ByteTxRx(port1, 36, 30) == (600, OK, 0)
+    assert ph1.write1ByteTxRx(port1, 11, 5, 7) == (OK, 0)
+    assert ph1.factoryReset(port1, 11) == (OK, 0)  # everything: ID 1, 57142 bps (34)
+    assert ph1.ping(port1, 1)[1] == TIMEOUT  # not at 1 Mbps any more
+    assert port1.setBaudRate(57600)  # within 3 % of the servo's rate
+    assert ph1.ping(port1, 1)[1:] == (OK, 0)
+    assert ph1.read1ByteTxRx(port1, 1, 5)[0] == 250
+
+
+def test_a_status_packet_on_the_line_is_not_executed(v2_bus: SimulatedBus) -> None:
+    status = p.build_status_v2(1, 0x01)
+    assert v2_bus.feed(status) == b""
