@@ -32,6 +32,8 @@ Position.
 
 from __future__ import annotations
 
+import math
+
 from robot_retarget.hardware.control_table import (
     ControlTable,
     Register,
@@ -47,10 +49,33 @@ ACCESS_ERROR = 1
 DATA_LIMIT_ERROR = 2
 DATA_LENGTH_ERROR = 3
 RESULT_FAIL = 4  # Protocol 2.0 "Result Fail": the instruction could not be carried out
+DATA_RANGE_ERROR = 5  # a value the register does not take (Protocol 2.0 error 0x04)
 
 _POSITION_MODE = 3  # XM430 Operating Mode: position control within one turn
 _EXTENDED_POSITION_MODE = 4
+_VELOCITY_MODE = 1
+_CURRENT_BASED_POSITION_MODE = 5  # position over many turns, the current limited
 _MAX_SINGLE_TURN_HOMING = 1024  # valid Homing Offset range in Position Control Mode
+_MULTI_TURN_GOAL = 1_048_575  # XM430 Goal Position range in modes 4 and 5
+_MX_MULTI_TURN_GOAL = 28_672  # MX (Protocol 1.0) Goal Position range in multi-turn mode
+# Values a register takes (e-Manual); anything else is a Data Range Error.
+_VALUES_V2: dict[str, frozenset[int]] = {
+    "operating_mode": frozenset((0, 1, 3, 4, 5, 16)),
+    "torque_enable": frozenset((0, 1)),
+    "led": frozenset((0, 1)),
+    "status_return_level": frozenset((0, 1, 2)),
+    "id": frozenset(range(253)),
+    "baud_rate": frozenset(range(8)),
+}
+_VALUES_V1: dict[str, frozenset[int]] = {
+    "torque_enable": frozenset((0, 1)),
+    "led": frozenset((0, 1)),
+    "status_return_level": frozenset((0, 1, 2)),
+    "id": frozenset(range(254)),
+}
+# Protocol 2.0 goals bounded by a limit register: |goal| ≤ limit, else a Data Limit Error.
+_GOAL_LIMITS = {"goal_velocity": "velocity_limit", "goal_current": "current_limit",
+                "goal_pwm": "pwm_limit"}  # fmt: skip
 
 
 class SimServo:
@@ -108,10 +133,32 @@ class SimServo:
         self._put("present_position", self.user_from_horn(self.rad_to_ticks(q_rad)))
         self._put("goal_position", self.user_from_horn(self.rad_to_ticks(q_rad)))
 
-    def _position_limits(self) -> tuple[int, int]:
+    def mode(self) -> str:
+        """How the servo moves: "position" (within its limits), "multi-turn" (XM430 modes 4
+        and 5, MX with both angle limits at 4095: the position limits do not apply),
+        "velocity" (XM430 mode 1: Goal Velocity), "wheel" (AX/MX with both angle limits 0:
+        Moving Speed), or "torque" (XM430 current and PWM control: the horn goes where the
+        load takes it, which a kinematic model cannot say, so it stays)."""
         if self.protocol == 2.0:
-            if self.get("operating_mode") == _EXTENDED_POSITION_MODE:  # ±256 turns, no limits
-                return -1_048_575, 1_048_575
+            mode = self.get("operating_mode")
+            if mode in (_EXTENDED_POSITION_MODE, _CURRENT_BASED_POSITION_MODE):
+                return "multi-turn"
+            return {_POSITION_MODE: "position", _VELOCITY_MODE: "velocity"}.get(mode, "torque")
+        cw, ccw = self.get("cw_angle_limit"), self.get("ccw_angle_limit")
+        if cw == ccw == 0:
+            return "wheel"
+        if cw == ccw == self.model.max_tick and "multi_turn_offset" in self.table:
+            return "multi-turn"
+        return "position"
+
+    def _position_limits(self) -> tuple[int, int]:
+        mode = self.mode()
+        if mode == "multi-turn":
+            span = _MULTI_TURN_GOAL if self.protocol == 2.0 else _MX_MULTI_TURN_GOAL
+            return -span, span
+        if mode in ("velocity", "wheel", "torque"):
+            return -(2**31), 2**31 - 1  # Goal Position is not used
+        if self.protocol == 2.0:
             return self.get("min_position_limit"), self.get("max_position_limit")
         return self.get("cw_angle_limit"), self.get("ccw_angle_limit")
 
@@ -139,15 +186,27 @@ class SimServo:
             return ACCESS_ERROR
         for reg in regs:
             raw = data[reg.address - address : reg.address - address + reg.size]
-            value = int.from_bytes(raw, "little", signed=reg.signed)
-            if reg.name == "goal_position":
-                lo, hi = self._position_limits()
-                if not lo <= value <= hi:
-                    return DATA_LIMIT_ERROR
+            code = self._check_value(reg, raw)
+            if code != OK:
+                return code
         self.memory[address:end] = data  # a goal is stored; the horn moves only with torque on
         if self.hardware_error and self.protocol == 2.0 and self.get("torque_enable"):
             self._put("torque_enable", 0)  # after a shutdown only a reboot re-enables torque
         self.writes += 1
+        return OK
+
+    def _check_value(self, reg: Register, raw: bytes) -> int:
+        """OK, or the error a real servo gives for writing ``raw`` into ``reg``."""
+        signed = reg.signed or (reg.name == "goal_position" and self.mode() == "multi-turn")
+        value = int.from_bytes(raw, "little", signed=signed)
+        if reg.name == "goal_position":
+            lo, hi = self._position_limits()
+            return OK if lo <= value <= hi else DATA_LIMIT_ERROR
+        if self.protocol == 2.0 and reg.name in _GOAL_LIMITS:
+            return OK if abs(value) <= self.get(_GOAL_LIMITS[reg.name]) else DATA_LIMIT_ERROR
+        values = (_VALUES_V2 if self.protocol == 2.0 else _VALUES_V1).get(reg.name)
+        if values is not None and value not in values:
+            return DATA_RANGE_ERROR
         return OK
 
     def _locked(self) -> bool:
@@ -186,15 +245,20 @@ class SimServo:
         """Move for ``dt_s`` seconds and refresh the present-state registers."""
         if dt_s <= 0.0:
             return
-        if self.torque_on and not self.hardware_error_latched:
+        mode = self.mode()
+        if not self.torque_on or self.hardware_error_latched or mode == "torque":
+            self.dynamics.velocity_rad_s = 0.0
+        elif mode in ("velocity", "wheel"):
+            self._turn(self._commanded_velocity_rad_s(), dt_s)
+        else:
             self.dynamics.max_velocity_rad_s = self._max_speed_rad_s()
             lo, hi = sorted(self.horn_from_user(t) for t in self._position_limits())
             self.dynamics.lower_rad = self.ticks_to_rad(lo)
             self.dynamics.upper_rad = self.ticks_to_rad(hi)
             self.dynamics.step(self.goal_rad, dt_s)
-        else:
-            self.dynamics.velocity_rad_s = 0.0
         ticks = round(self.dynamics.q_rad / self.model.rad_per_tick) + self.model.zero_tick
+        if mode == "wheel":  # Protocol 1.0 Present Position stays within one turn
+            ticks = min(ticks % round(2 * math.pi / self.model.rad_per_tick), self.model.max_tick)
         self._put("present_position", self.user_from_horn(ticks))
         vel_units = round(self.dynamics.velocity_rad_s / self.table.velocity_unit_rad_s)
         moving = int(abs(vel_units) > 0)
@@ -214,6 +278,26 @@ class SimServo:
             turn_rad = self.model.ticks_per_range * self.model.rad_per_tick
             self.dynamics.q_rad -= (-1.0 if self._reversed() else 1.0) * turns * turn_rad
             self.set_present_rad(self.dynamics.q_rad)
+
+    def _commanded_velocity_rad_s(self) -> float:
+        """The horn's velocity in velocity (Goal Velocity, within Velocity Limit) or wheel mode
+        (Moving Speed: magnitude in bits 0–9, bit 10 set = clockwise, i.e. negative)."""
+        unit = self.table.velocity_unit_rad_s
+        if self.protocol == 2.0:
+            limit = self.get("velocity_limit")
+            user = max(-limit, min(limit, self.get("goal_velocity"))) * unit
+            v = -user if self._reversed() else user
+        else:
+            speed = self.get("moving_speed")
+            v = (speed & 0x3FF) * unit * (-1.0 if speed & 0x400 else 1.0)
+        top = self.model.no_load_speed_rad_s
+        return max(-top, min(top, v))
+
+    def _turn(self, velocity_rad_s: float, dt_s: float) -> None:
+        """Turn at ``velocity_rad_s`` for ``dt_s`` (no position limits: a wheel)."""
+        self.dynamics.lower_rad, self.dynamics.upper_rad = -math.inf, math.inf
+        self.dynamics.q_rad += velocity_rad_s * dt_s
+        self.dynamics.velocity_rad_s = velocity_rad_s
 
     @property
     def hardware_error_latched(self) -> bool:
@@ -265,7 +349,7 @@ class SimServo:
         bits = self.hardware_error & 0x25
         if code == DATA_LIMIT_ERROR:
             bits |= 0x02  # angle limit error
-        elif code in (ACCESS_ERROR, DATA_LENGTH_ERROR):
+        elif code in (ACCESS_ERROR, DATA_LENGTH_ERROR, DATA_RANGE_ERROR):
             bits |= 0x08  # range error
         return bits
 
@@ -274,6 +358,7 @@ class SimServo:
         number = {
             OK: 0,
             RESULT_FAIL: 0x01,
+            DATA_RANGE_ERROR: 0x04,
             ACCESS_ERROR: 0x07,
             DATA_LIMIT_ERROR: 0x06,
             DATA_LENGTH_ERROR: 0x05,

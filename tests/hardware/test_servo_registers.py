@@ -325,7 +325,9 @@ def test_the_limit_check_passes_exactly_when_the_servo_takes_every_configured_go
     def takes(tick: int) -> bool:
         return servo.write(goal.address, p.le_bytes(tick, goal.size)) == OK
 
-    assert ok == (takes(lo) and takes(hi))
+    # Both limits 0 (wheel) or both 4095 on an MX (multi-turn): the servo takes any goal but
+    # is no position servo there (wheel: it ignores goals), so the check must refuse it too.
+    assert ok == (servo.mode() == "position" and takes(lo) and takes(hi))
     if ok:  # then every angle of the configured range lands, as the backend converts it
         q = joint.lower_rad + pick * (joint.upper_rad - joint.lower_rad)
         assert takes(JointServoUnits(joint).to_tick(q))

@@ -176,3 +176,58 @@ def test_factory_reset_clear_and_action_as_the_e_manual_says(
 def test_a_status_packet_on_the_line_is_not_executed(v2_bus: SimulatedBus) -> None:
     status = p.build_status_v2(1, 0x01)
     assert v2_bus.feed(status) == b""
+
+
+def _write_v2(bus: SimulatedBus, address: int, value: int, size: int, sid: int = 1) -> int:
+    packet = p.build_v2(sid, p.INST_WRITE, le(address, 2) + le(value, size))
+    (reply,) = _replies_v2(bus.feed(packet))
+    return reply.code
+
+
+def test_operating_modes_and_register_ranges_of_an_xm430() -> None:
+    """Modes 4 and 5 take goals over ±256 turns (LeRobot's arms and grippers use them);
+    velocity mode turns at Goal Velocity, within Velocity Limit; values a register does not
+    take are a Data Range Error, goals past their limit register a Data Limit Error."""
+    t = [0.0]
+    servo = SimServo(1, "XM430-W350")
+    bus = SimulatedBus([servo], protocol=2.0, clock=lambda: t[0])
+    assert _write_v2(bus, 11, 5, 1) == 0  # current-based position
+    assert _write_v2(bus, 116, 10_000, 4) == 0
+    assert _write_v2(bus, 116, -5_000, 4) == 0
+    assert _write_v2(bus, 11, 1, 1) == 0  # velocity
+    assert _write_v2(bus, 104, 5_000, 4) == 0x06  # over Velocity Limit (200)
+    assert _write_v2(bus, 104, 100, 4) == 0
+    assert _write_v2(bus, 64, 1, 1) == 0
+    start = servo.get("present_position")
+    t[0] += 1.0
+    bus.feed(p.build_v2(1, p.INST_PING, b""))
+    turned = servo.get("present_position") - start  # 100 × 0.229 rpm for 1 s ≈ 156 ticks
+    assert turned == pytest.approx(100 * 0.229 / 60 * 4096, rel=0.02)
+    assert servo.get("present_velocity") == 100
+    assert _write_v2(bus, 64, 0, 1) == 0
+    for address, value, size in ((11, 2, 1), (8, 200, 1), (64, 7, 1), (68, 5, 1), (7, 253, 1)):
+        assert _write_v2(bus, address, value, size) == 0x04, address
+    assert _write_v2(bus, 102, 5_000, 2) == 0x06  # Goal Current over Current Limit
+    assert _write_v2(bus, 100, 1_000, 2) == 0x06  # Goal PWM over PWM Limit
+
+
+def test_wheel_and_multi_turn_modes_of_protocol_1_servos(v1_bus: SimulatedBus) -> None:
+    """AX/MX with both angle limits 0: a wheel, turning at Moving Speed (bit 10: clockwise),
+    Goal Position unused; MX with both at 4095: multi-turn, goals over ±28672."""
+
+    def write(sid: int, address: int, value: int, size: int) -> int:
+        out = v1_bus.feed(p.build_v1(sid, p.INST_WRITE, bytes((address,)) + le(value, size)))
+        return p.parse_v1(out, status=True).code
+
+    assert write(11, 6, 4095 | 4095 << 16, 4) == 0  # CW = CCW = 4095
+    assert write(11, 30, 6_000, 2) == 0
+    assert write(11, 30, -5_000, 2) == 0
+    assert write(11, 30, 30_000, 2) == p.ERR1_ANGLE_LIMIT
+    assert write(36, 6, 0, 4) == 0  # wheel
+    assert write(36, 30, 512, 2) == 0  # not used
+    assert write(36, 32, 1024 | 500, 2) == 0  # clockwise, 500 units
+    assert write(36, 24, 1, 1) == 0
+    wheel = v1_bus.servos[36]
+    wheel.advance(0.1)
+    assert wheel.dynamics.velocity_rad_s == pytest.approx(-500 * wheel.table.velocity_unit_rad_s)
+    assert wheel.get("present_speed") == 1024 | 500
