@@ -72,11 +72,27 @@ def _table(
     return out
 
 
+# XM430 Indirect Address / Data: two blocks of 28; Indirect Address k (2 bytes, default: its own
+# Indirect Data k) names the register byte that Indirect Data k (1 byte) reads and writes.
+XM430_INDIRECT_BLOCKS = ((168, 224), (578, 634))  # (first address register, first data byte)
+XM430_INDIRECT_PER_BLOCK = 28
+
+
+def _xm430_indirect() -> tuple[tuple[str, int, int, str, int], ...]:
+    regs: list[tuple[str, int, int, str, int]] = []
+    for block, (addr0, data0) in enumerate(XM430_INDIRECT_BLOCKS):
+        for i in range(XM430_INDIRECT_PER_BLOCK):
+            k = block * XM430_INDIRECT_PER_BLOCK + i + 1
+            regs.append((f"indirect_address_{k}", addr0 + 2 * i, 2, "RW", data0 + i))
+            regs.append((f"indirect_data_{k}", data0 + i, 1, "RW", 0))
+    return tuple(regs)
+
+
 # XM430-W350, Protocol 2.0. Access: "E…" EEPROM, "R…" RAM; "W" writable. EEPROM is 0–63.
 XM430_W350 = ControlTable(
     model="XM430-W350",
     protocol=2.0,
-    memory_size=147 + 1,
+    memory_size=661 + 1,
     registers=_table(
         ("model_number", 0, 2, "E", 1020),
         ("model_information", 2, 4, "E", 0),
@@ -131,6 +147,7 @@ XM430_W350 = ControlTable(
         ("present_input_voltage", 144, 2, "R", 120),  # 0.1 V per LSB
         ("present_temperature", 146, 1, "R", 30),  # °C
         ("backup_ready", 147, 1, "R", 0),
+        *_xm430_indirect(),
     ),
     velocity_unit_rad_s=0.229 * RPM_TO_RAD_S,
     full_load=1193,  # Present Current relative to the default Current Limit (≈ 3.2 A)

@@ -35,6 +35,8 @@ from __future__ import annotations
 import math
 
 from robot_retarget.hardware.control_table import (
+    XM430_INDIRECT_BLOCKS,
+    XM430_INDIRECT_PER_BLOCK,
     ControlTable,
     Register,
     control_table,
@@ -57,6 +59,7 @@ _VELOCITY_MODE = 1
 _CURRENT_BASED_POSITION_MODE = 5  # position over many turns, the current limited
 _MAX_SINGLE_TURN_HOMING = 1024  # valid Homing Offset range in Position Control Mode
 _MULTI_TURN_GOAL = 1_048_575  # XM430 Goal Position range in modes 4 and 5
+_INDIRECT_TARGETS = (64, 661)  # what an XM430 Indirect Address may name
 _MX_MULTI_TURN_GOAL = 28_672  # MX (Protocol 1.0) Goal Position range in multi-turn mode
 # Values a register takes (e-Manual); anything else is a Data Range Error.
 _VALUES_V2: dict[str, frozenset[int]] = {
@@ -88,10 +91,14 @@ class SimServo:
         self.protocol = self.table.protocol
         self.memory = bytearray(self.table.memory_size)
         self._by_address: dict[int, Register] = {}
+        self._owner: list[Register | None] = [None] * len(self.memory)  # each byte's register
         for reg in self.table.registers.values():
             self._by_address[reg.address] = reg
+            self._owner[reg.address : reg.address + reg.size] = [reg] * reg.size
             self.memory[reg.address : reg.address + reg.size] = le_bytes(reg.default, reg.size)
         self._put("id", servo_id)
+        indirect = "indirect_address_1" in self.table
+        self._indirect_blocks = XM430_INDIRECT_BLOCKS if indirect else ()
         self.hardware_error = 0
         self.registered: tuple[int, bytes] | None = None
         self.dynamics = ServoDynamics(
@@ -165,7 +172,35 @@ class SimServo:
     def read(self, address: int, length: int) -> tuple[int, bytes]:
         if length <= 0 or address < 0 or address + length > len(self.memory):
             return ACCESS_ERROR, b""
-        return OK, bytes(self.memory[address : address + length])
+        end = address + length
+        if not self._touches_indirect(address, end):
+            return OK, bytes(self.memory[address:end])
+        return OK, bytes(self.memory[self._through_indirect(a)] for a in range(address, end))
+
+    def _touches_indirect(self, start: int, end: int) -> bool:
+        return any(
+            start < data0 + XM430_INDIRECT_PER_BLOCK and data0 < end
+            for _, data0 in self._indirect_blocks
+        )
+
+    def _through_indirect(self, address: int) -> int:
+        """The byte an address stands for: an Indirect Data byte's Indirect Address, else
+        itself (an Indirect Address naming no byte of the table leaves the data byte alone)."""
+        for addr0, data0 in self._indirect_blocks:
+            k = address - data0
+            if 0 <= k < XM430_INDIRECT_PER_BLOCK:
+                a = addr0 + 2 * k
+                target = self.memory[a] | self.memory[a + 1] << 8
+                return target if target < len(self.memory) else address
+        return address
+
+    def _writable(self, reg: Register) -> bool:
+        if not reg.writable:
+            return False
+        if reg.eeprom and self.torque_on and self.protocol == 2.0:
+            return False  # EEPROM is locked while torque is on
+        # Lock = 1: EEPROM read-only until power-off
+        return not (self._locked() and (reg.eeprom or reg.name == "lock"))
 
     def write(self, address: int, data: bytes) -> int:
         """Write a byte span; all of it or nothing. Returns an error code."""
@@ -176,20 +211,31 @@ class SimServo:
         for reg in regs:
             if reg.address + reg.size > end:
                 return DATA_LENGTH_ERROR  # would split a register
-            if not reg.writable:
+            if not self._writable(reg):
                 return ACCESS_ERROR
-            if reg.eeprom and self.torque_on and self.protocol == 2.0:
-                return ACCESS_ERROR  # EEPROM is locked while torque is on
-            if self._locked() and (reg.eeprom or reg.name == "lock"):
-                return ACCESS_ERROR  # Lock = 1: EEPROM read-only until power-off
         if address not in self._by_address or not regs:
             return ACCESS_ERROR
-        for reg in regs:
-            raw = data[reg.address - address : reg.address - address + reg.size]
-            code = self._check_value(reg, raw)
+        if not self._touches_indirect(address, end):
+            return self._commit(self.memory[:address] + data + self.memory[end:], regs)
+        new = bytearray(self.memory)
+        touched = {r.address: r for r in regs}
+        for a, byte in zip(range(address, end), data, strict=True):
+            target = self._through_indirect(a)
+            new[target] = byte
+            if target != a:  # through an Indirect Data byte: the named register's rules
+                owner = self._owner[target]
+                if owner is None or not self._writable(owner):
+                    return ACCESS_ERROR
+                touched[owner.address] = owner
+        return self._commit(new, list(touched.values()))
+
+    def _commit(self, new: bytearray, touched: list[Register]) -> int:
+        """Store ``new`` as the memory if every touched register takes its new value."""
+        for reg in touched:
+            code = self._check_value(reg, bytes(new[reg.address : reg.address + reg.size]))
             if code != OK:
                 return code
-        self.memory[address:end] = data  # a goal is stored; the horn moves only with torque on
+        self.memory[:] = new  # a goal is stored; the horn moves only with torque on
         if self.hardware_error and self.protocol == 2.0 and self.get("torque_enable"):
             self._put("torque_enable", 0)  # after a shutdown only a reboot re-enables torque
         self.writes += 1
@@ -202,6 +248,8 @@ class SimServo:
         if reg.name == "goal_position":
             lo, hi = self._position_limits()
             return OK if lo <= value <= hi else DATA_LIMIT_ERROR
+        if reg.name.startswith("indirect_address_"):
+            return OK if _INDIRECT_TARGETS[0] <= value <= _INDIRECT_TARGETS[1] else DATA_RANGE_ERROR
         if self.protocol == 2.0 and reg.name in _GOAL_LIMITS:
             return OK if abs(value) <= self.get(_GOAL_LIMITS[reg.name]) else DATA_LIMIT_ERROR
         values = (_VALUES_V2 if self.protocol == 2.0 else _VALUES_V1).get(reg.name)

@@ -231,3 +231,27 @@ def test_wheel_and_multi_turn_modes_of_protocol_1_servos(v1_bus: SimulatedBus) -
     wheel.advance(0.1)
     assert wheel.dynamics.velocity_rad_s == pytest.approx(-500 * wheel.table.velocity_unit_rad_s)
     assert wheel.get("present_speed") == 1024 | 500
+
+
+def test_indirect_addresses_of_an_xm430(v2_client: Client, v2_bus: SimulatedBus) -> None:
+    """As ROBOTIS-Framework (OP3's own controller) uses them: Indirect Address k names a
+    register byte, Indirect Data k reads and writes it under that register's rules; factory
+    addresses name the data bytes themselves."""
+    port, ph = v2_client
+    assert ph.write1ByteTxRx(port, 1, 224, 7) == (OK, 0)  # factory: its own storage
+    assert ph.read1ByteTxRx(port, 1, 224) == (7, OK, 0)
+    for k in range(4):  # Indirect Data 1–4 → Present Position, 5–8 → Goal Position
+        assert ph.write2ByteTxRx(port, 1, 168 + 2 * k, 132 + k) == (OK, 0)
+        assert ph.write2ByteTxRx(port, 1, 176 + 2 * k, 116 + k) == (OK, 0)
+    present = v2_bus.servos[1].get("present_position")
+    assert ph.read4ByteTxRx(port, 1, 224) == (present, OK, 0)
+    assert ph.write4ByteTxRx(port, 1, 228, 1000) == (OK, 0)
+    assert ph.read4ByteTxRx(port, 1, 116) == (1000, OK, 0)
+    assert ph.write4ByteTxRx(port, 1, 228, 5000) == (OK, 0x06)  # past Max Position Limit
+    assert ph.write4ByteTxRx(port, 1, 224, 0) == (OK, 0x07)  # Present Position is read-only
+    assert ph.write2ByteTxRx(port, 1, 168, 700) == (OK, 0x04)  # names no register byte
+    assert ph.write2ByteTxRx(port, 1, 168, 9) == (OK, 0x04)  # EEPROM: only 64–661 named
+    assert ph.write2ByteTxRx(port, 1, 168, 64) == (OK, 0)  # Torque Enable
+    assert ph.write1ByteTxRx(port, 1, 224, 7) == (OK, 0x04)  # Torque Enable takes 0 or 1
+    assert ph.write1ByteTxRx(port, 1, 224, 1) == (OK, 0)
+    assert v2_bus.servos[1].torque_on

@@ -38,7 +38,7 @@ def test_access_rules() -> None:
     assert s.write(116, (5000).to_bytes(4, "little")) == DATA_LIMIT_ERROR
     assert s.write(64, b"\x01") == OK
     assert s.write(11, b"\x04") == ACCESS_ERROR  # EEPROM with torque on
-    assert s.read(140, 20) == (ACCESS_ERROR, b"")
+    assert s.read(650, 20) == (ACCESS_ERROR, b"")  # past the table's end (661)
 
 
 @pytest.mark.parametrize("model", ["XM430-W350", "MX-28", "MX-64", "AX-12A"])
