@@ -11,16 +11,13 @@ robot's control rate (or ``fps``); the trajectory starts at the clip's first fra
 
 from __future__ import annotations
 
-import math
-import numbers
 import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from robot_retarget.errors import RetargetError
+from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.pipeline.convert import ClipResult, convert_motion
@@ -58,9 +55,8 @@ def retarget(
     loaded model; default: the shipped default — its numpy runtime, no torch needed), at ``fps``
     (default: the robot's control rate). ``foot_lock``: run the residual network's foot lock
     (off on the robot by default, as in ``convert``)."""
-    number = isinstance(fps, numbers.Real) and not isinstance(fps, bool | np.bool_)
-    if fps is not None and not (number and math.isfinite(fps) and fps > 0.0):
-        raise RetargetError(f"fps must be a positive number of frames per second, got {fps!r}")
+    if fps is not None and not plausible_fps(fps):
+        raise RetargetError(f"fps must be a frame rate, {FPS_RANGE}, got {fps!r}")
     if not isinstance(clip_or_motion, HumanMotion | str | os.PathLike):
         raise RetargetError(
             f"clip_or_motion must be a BVH path or a HumanMotion, got {type(clip_or_motion)!r}"

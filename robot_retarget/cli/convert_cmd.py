@@ -23,7 +23,6 @@ same bit for bit (all but ``frame_ms``, the measured compute time per frame).
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from collections.abc import Callable
@@ -34,6 +33,7 @@ from typing import TextIO
 from robot_retarget.cli.fallback_warning import fallback_warning
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.errors import MotionFormatError, RetargetError
+from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
 from robot_retarget.pipeline.clip_converter import (
     ClipConverter,
     ClipJob,
@@ -272,8 +272,8 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
 
 def run(args: argparse.Namespace) -> int:
     for option, value in (("--fps", args.fps), ("--keypoint-fps", args.keypoint_fps)):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise RetargetError(f"{option} must be a positive number, got {value}")
+        if value is not None and not plausible_fps(value):
+            raise RetargetError(f"{option} must be a frame rate, {FPS_RANGE}, got {value:g}")
     if args.max_frames is not None and args.max_frames < 1:
         raise RetargetError(f"--max-frames must be at least 1, got {args.max_frames}")
     if args.workers is not None or args.ray_address is not None:

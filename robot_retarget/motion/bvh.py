@@ -17,6 +17,7 @@ path and the 1-based line number where the problem is.
 
 from __future__ import annotations
 
+import codecs
 import math
 import os
 import re
@@ -32,6 +33,7 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError
 from robot_retarget.geometry import euler
 from robot_retarget.geometry import quaternion as quat
+from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
 
 if TYPE_CHECKING:
@@ -284,6 +286,10 @@ def _parse_offset(tokens: _Tokens) -> tuple[float, float, float]:
         raise tokens.error(f"OFFSET values {values} are not all numbers", line) from None
     if not all(math.isfinite(v) for v in (x, y, z)):
         raise tokens.error(f"OFFSET values {values} must be finite", line)
+    if max(abs(x), abs(y), abs(z)) > MAX_ABS_VALUE:
+        raise tokens.error(
+            f"OFFSET values {values} are beyond ±{MAX_ABS_VALUE:g}: no bone in any unit", line
+        )
     return (x, y, z)
 
 
@@ -325,8 +331,14 @@ def _expect_brace(tokens: _Tokens, brace: str, what: str) -> None:
 
 
 def _parse_joint(
-    tokens: _Tokens, builder: _HeaderBuilder, parent: int, name: str, line: int
+    tokens: _Tokens, builder: _HeaderBuilder, parent: int, name: str, line: int, depth: int = 0
 ) -> None:
+    if depth > MAX_DEPTH:
+        raise tokens.error(
+            f"joint {name!r} is nested {depth} joints deep; a skeleton is at most {MAX_DEPTH} "
+            "(is a '}' missing above?)",
+            line,
+        )
     if name in builder.names:
         raise tokens.error(f"duplicate joint name {name!r}; joint names must be unique", line)
     index = len(builder.names)
@@ -344,7 +356,7 @@ def _parse_joint(
             child = " ".join(tokens.rest_of_line(ln))
             if not child:
                 raise tokens.error("JOINT needs a name on the same line", ln)
-            _parse_joint(tokens, builder, index, child, ln)
+            _parse_joint(tokens, builder, index, child, ln, depth + 1)
         elif key == "END":
             site, _ = tokens.next("'Site'")
             if site.upper() != "SITE":
@@ -361,8 +373,11 @@ def _parse_joint(
             )
 
 
+MAX_DEPTH = 200  # joints from the root: a hand's fingertip is about 30
+# Any channel or offset: 10⁷ file units is 10 km even in millimetres, 10⁷ degrees 28 000 turns.
+MAX_ABS_VALUE = 1e7
 _FRAMES_RE = re.compile(r"^\s*frames\s*:?\s*(\S*)\s*$", re.IGNORECASE)
-_FRAME_TIME_RE = re.compile(r"^\s*frame\s+time\s*:?\s*(\S*)\s*$", re.IGNORECASE)
+FRAME_TIME_RE = re.compile(r"^\s*frame\s+time\s*:?\s*(\S*)\s*$", re.IGNORECASE)
 
 
 def parse_bvh(
@@ -372,7 +387,7 @@ def parse_bvh(
     where = None if path is None else str(path)
     if max_frames is not None and max_frames < 1:
         raise ValueError(f"max_frames must be at least 1, got {max_frames}")
-    lines = text.splitlines()  # handles LF, CRLF and CR
+    lines = text.removeprefix("\ufeff").splitlines()  # handles LF, CRLF and CR
     motion_line = next((i for i, ln in enumerate(lines) if ln.strip().upper() == "MOTION"), None)
     header_lines = lines if motion_line is None else lines[:motion_line]
     end = (
@@ -453,7 +468,7 @@ def _parse_motion_header(
             f"Frames is {frames}: a BVH clip needs at least one frame", path=where, line=i + 1
         )
     j = _next_content_line(lines, i + 1)
-    m = _FRAME_TIME_RE.match(lines[j]) if j < len(lines) else None
+    m = FRAME_TIME_RE.match(lines[j]) if j < len(lines) else None
     if m is None:
         raise MotionFormatError(
             "expected 'Frame Time: seconds' after Frames", path=where, line=min(j, len(lines)) + 1
@@ -468,6 +483,14 @@ def _parse_motion_header(
         raise MotionFormatError(
             f"Frame Time is {m.group(1)}; it must be a positive number of seconds "
             "(e.g. 0.0083333 for 120 fps)",
+            path=where,
+            line=j + 1,
+        )
+    if not plausible_fps(1.0 / frame_time):
+        raise MotionFormatError(
+            f"Frame Time is {m.group(1)} s, {1.0 / frame_time:.3g} frames per second; motion "
+            f"is recorded at {FPS_RANGE} (e.g. 0.0083333 for 120 fps): is the line in another "
+            "unit?",
             path=where,
             line=j + 1,
         )
@@ -533,6 +556,16 @@ def _parse_motion_rows(
             path=where,
             line=row_lines[k],
         )
+    huge = np.abs(motion) > MAX_ABS_VALUE
+    if huge.any():
+        k = int(np.flatnonzero(huge.any(axis=1))[0])
+        col = int(np.flatnonzero(huge[k])[0])
+        raise MotionFormatError(
+            f"motion row {k + 1}, value {col + 1} is {rows[k][col]}, beyond ±{MAX_ABS_VALUE:g}: "
+            "no joint angle or position (repair or cut the bad frames)",
+            path=where,
+            line=row_lines[k],
+        )
     return motion
 
 
@@ -564,11 +597,21 @@ def read_bvh(path: str | Path, *, max_frames: int | None = None) -> BvhClip:
         raise MotionFormatError(
             f"the file is empty ({len(raw)} bytes): a BVH file starts with HIERARCHY", path=p
         )
+    return parse_bvh(decode_bvh_bytes(raw), path=p, max_frames=max_frames)
+
+
+def decode_bvh_bytes(raw: bytes) -> str:
+    """A BVH file's text: UTF-8 (with or without the byte-order mark Windows editors write),
+    UTF-16 with its mark, else Latin-1 (old exporters' joint names)."""
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        try:
+            return raw.decode("utf-16")
+        except UnicodeDecodeError:
+            pass
     try:
-        text = raw.decode("utf-8")
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    return parse_bvh(text, path=p, max_frames=max_frames)
+        return raw.decode("latin-1")
 
 
 # --- writing ------------------------------------------------------------------------------

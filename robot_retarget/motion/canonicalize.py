@@ -129,7 +129,7 @@ def canonicalize(
     points_up = quat.rotate(r, points)
 
     height_units = _height_units(clip, points_up, jm)
-    unit_name = unit if unit is not None else detect_unit(height_units)
+    unit_name = unit if unit is not None else detect_unit(height_units, clip.path)
     scale = unit_scale_m(unit_name)
 
     dropped = 0

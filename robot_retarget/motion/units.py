@@ -24,6 +24,7 @@ UNIT_SCALES_M: dict[str, float] = {
 }
 
 _TYPICAL_HEIGHT_M = 1.7
+PLAUSIBLE_HEIGHT_M = (0.25, 5.0)  # what auto-detection accepts as a performer's height
 
 
 def unit_scale_m(unit: str) -> float:
@@ -36,14 +37,25 @@ def unit_scale_m(unit: str) -> float:
         ) from None
 
 
-def detect_unit(height_file_units: float) -> str:
-    """The unit that makes a standing height (in file units) most like an adult's."""
+def detect_unit(height_file_units: float, path: str | None = None) -> str:
+    """The unit that makes a standing height (in file units) most like an adult's; ``path``
+    names the file in the error when no unit makes it a performer's."""
     if not (math.isfinite(height_file_units) and height_file_units > 0.0):
         raise MotionFormatError(
             f"cannot detect the length unit from a standing height of {height_file_units}; "
-            "pass the unit explicitly"
+            "pass the unit explicitly",
+            path=path,
         )
-    return min(
+    unit = min(
         UNIT_SCALES_M,
         key=lambda u: abs(math.log(height_file_units * UNIT_SCALES_M[u] / _TYPICAL_HEIGHT_M)),
     )
+    height_m = height_file_units * UNIT_SCALES_M[unit]
+    if not PLAUSIBLE_HEIGHT_M[0] <= height_m <= PLAUSIBLE_HEIGHT_M[1]:
+        raise MotionFormatError(
+            f"the skeleton stands {height_file_units:.3g} file units tall, {height_m:.3g} m "
+            f"even in {unit}, the likeliest unit: no unit makes it a performer "
+            f"({PLAUSIBLE_HEIGHT_M[0]:g}–{PLAUSIBLE_HEIGHT_M[1]:g} m); are the OFFSETs right?",
+            path=path,
+        )
+    return unit

@@ -140,6 +140,9 @@ class ClipConverter:
             report = self._convert(job, progress, log)
         except (RetargetError, OSError, ValueError) as exc:
             report = ClipReport(job.clip, job.out, error=str(exc))
+        except (MemoryError, RecursionError) as exc:  # this clip only: the others go on
+            what = "out of memory" if isinstance(exc, MemoryError) else "nested too deeply"
+            report = ClipReport(job.clip, job.out, error=f"{what} ({exc})")
         return dataclasses.replace(report, cpu_s=time.process_time() - cpu0)
 
     def _convert(

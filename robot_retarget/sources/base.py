@@ -23,6 +23,8 @@ from robot_retarget.skeleton.skeleton import Skeleton
 DEFAULT_QUEUE_FRAMES = 256
 """Frames a network source buffers between two polls before it drops the oldest."""
 
+WARN_AFTER = 30  # consecutive packets a sender got wrong before a live warning
+_SENDER_FAULTS = frozenset(("oversized", "malformed", "nan", "auth"))
 DROP_REASONS: tuple[str, ...] = (
     "oversized",
     "malformed",
@@ -59,15 +61,38 @@ class SourceStats:
     received: int = 0
     accepted: int = 0
     dropped: dict[str, int] = field(default_factory=lambda: dict.fromkeys(DROP_REASONS, 0))
+    # The last drop's message per reason (what was wrong with the packet), for the summary.
+    last_messages: dict[str, str] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     on_warning: Callable[[str], None] | None = field(default=None, repr=False, compare=False)
+    _rejected_streak: int = field(default=0, repr=False, compare=False)
 
     @property
     def dropped_total(self) -> int:
         return sum(self.dropped.values())
 
-    def drop(self, reason: str) -> None:
+    def drop(self, reason: str, message: str | None = None) -> None:
+        """Count a dropped packet. Packets the sender got wrong (malformed, NaN, oversized,
+        a wrong token) that come :data:`WARN_AFTER` in a row raise a live warning with the
+        last one's ``message``, again every ten times as many while it lasts."""
         self.dropped[reason] = self.dropped.get(reason, 0) + 1
+        if message:
+            self.last_messages[reason] = message
+        if reason not in _SENDER_FAULTS:
+            return
+        self._rejected_streak += 1
+        n = self._rejected_streak
+        if n == WARN_AFTER or (n > WARN_AFTER and (n - WARN_AFTER) % (10 * WARN_AFTER) == 0):
+            why = f": {message}" if message else ""
+            self.warn(
+                f"source: {n} packets in a row dropped as {reason}{why}; nothing from this "
+                "sender reaches the robot until it is fixed"
+            )
+
+    def accept(self) -> None:
+        """Count an accepted frame (and end a run of rejected packets)."""
+        self.accepted += 1
+        self._rejected_streak = 0
 
     def warn(self, message: str) -> None:
         """Record a warning and pass it on to ``on_warning`` (live) when set."""
@@ -76,8 +101,13 @@ class SourceStats:
             self.on_warning(message)
 
     def summary(self) -> str:
-        parts = [f"{k} {v}" for k, v in self.dropped.items() if v]
-        detail = f" ({', '.join(parts)})" if parts else ""
+        parts = [
+            f"{k} {v}"
+            + (f" — the last: {self.last_messages[k]}" if k in self.last_messages else "")
+            for k, v in self.dropped.items()
+            if v
+        ]
+        detail = f" ({'; '.join(parts)})" if parts else ""
         warned = (
             f"; {len(self.warnings)} warning(s), the last: {self.warnings[-1]}"
             if self.warnings

@@ -22,8 +22,9 @@ from collections.abc import Callable
 import numpy as np
 
 from robot_retarget.errors import MotionFormatError, SourceError
-from robot_retarget.motion.bvh import BvhClip, parse_bvh
+from robot_retarget.motion.bvh import FRAME_TIME_RE, MAX_ABS_VALUE, BvhClip, parse_bvh
 from robot_retarget.motion.canonicalize import canonicalize
+from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.skeleton.skeleton import Skeleton
 from robot_retarget.sources.base import (
@@ -49,13 +50,19 @@ def split_header(text: str) -> tuple[str, float, int] | None:
         if line.upper() == "MOTION":
             motion = True
             header_end = consumed
-        elif motion and line.lower().startswith("frame time:"):
+        elif motion and (m := FRAME_TIME_RE.match(line)) is not None:  # as the file reader
             try:
-                dt = float(line.split(":", 1)[1])
+                dt = float(m.group(1))
             except ValueError:
                 raise MotionFormatError(f"bad Frame Time line {line!r}", line=i + 1) from None
             if not (math.isfinite(dt) and dt > 0.0):
                 raise MotionFormatError(f"Frame Time must be positive, got {dt}", line=i + 1)
+            if not plausible_fps(1.0 / dt):
+                raise MotionFormatError(
+                    f"Frame Time {dt:g} s is {1.0 / dt:.3g} frames per second; motion is "
+                    f"streamed at {FPS_RANGE}",
+                    line=i + 1,
+                )
             return text[:header_end], dt, consumed
     return None
 
@@ -147,9 +154,12 @@ class TcpBvhSource(SocketSource):
             data += chunk
         header, dt, consumed = found
         try:
-            # One zero row: the parser wants a frame; the channel count comes from CHANNELS.
-            width = sum(int(n) for n in re.findall(r"CHANNELS\s+(\d+)", header, re.IGNORECASE))
-            probe = parse_bvh(header + "Frames: 1\nFrame Time: 1\n" + " ".join(["0"] * width))
+            # One zero row: the parser wants a frame. Its width counts the channels each
+            # CHANNELS line names (the parser checks them against the declared counts).
+            listed = re.findall(r"CHANNELS\s+\d+([^\n]*)", header, re.IGNORECASE)
+            width = sum(len(names.split()) for names in listed)
+            row = " ".join(["0"] * width)
+            probe = parse_bvh(header + f"Frames: 1\nFrame Time: 1\n{row}", path=self.describe())
         except MotionFormatError as exc:
             raise SourceError(f"tcp-bvh header is not valid BVH: {exc}") from exc
         n_channels = sum(len(c) for c in probe.channels)
@@ -174,13 +184,20 @@ class TcpBvhSource(SocketSource):
             except TimeoutError:
                 continue
             except OSError as exc:
-                self.error = f"connection lost: {exc}"
+                self._ended(f"connection lost: {exc}")
                 break
             if not chunk:
-                self.error = "the sender closed the stream"
+                self._ended("the sender closed the stream")
                 break
             self.feed(chunk, self._clock())
         self._closed = True
+
+    def _ended(self, why: str) -> None:
+        """Say (live, and in the summary) why the stream ended early."""
+        if self._pending.strip():
+            why += f"; its last frame was cut short ({len(self._pending)} bytes, not used)"
+        self.error = why
+        self.stats.warn(f"source: tcp-bvh {why}")
 
     def feed(self, data: bytes, recv_s: float) -> list[SourceFrame]:
         """Process received bytes (complete lines become frames); returns the new frames."""
@@ -189,7 +206,7 @@ class TcpBvhSource(SocketSource):
         self._pending = lines.pop()
         if len(self._pending) > MAX_LINE_BYTES:
             self.stats.received += 1
-            self.stats.drop("oversized")
+            self.stats.drop("oversized", f"a frame line longer than {MAX_LINE_BYTES} bytes")
             self._pending = b""
         rows: list[np.ndarray] = []
         template = self._template
@@ -201,18 +218,26 @@ class TcpBvhSource(SocketSource):
                 continue
             self.stats.received += 1
             if len(raw) > MAX_LINE_BYTES:
-                self.stats.drop("oversized")
+                self.stats.drop("oversized", f"a frame line longer than {MAX_LINE_BYTES} bytes")
                 continue
             try:
                 values = np.array(raw.split(), dtype=np.float64)
             except ValueError:
-                self.stats.drop("malformed")
+                self.stats.drop("malformed", "a frame line holds something other than numbers")
                 continue
             if values.shape != (width,):
-                self.stats.drop("malformed")
+                self.stats.drop(
+                    "malformed",
+                    f"a frame line has {values.size} values, the header declares {width} channels",
+                )
                 continue
             if not np.all(np.isfinite(values)):
-                self.stats.drop("nan")
+                self.stats.drop("nan", "a frame line holds NaN or infinite values")
+                continue
+            if (np.abs(values) > MAX_ABS_VALUE).any():
+                self.stats.drop(
+                    "malformed", f"a frame line holds a value beyond ±{MAX_ABS_VALUE:g}"
+                )
                 continue
             rows.append(values)
         if not rows:
@@ -229,16 +254,16 @@ class TcpBvhSource(SocketSource):
                 up_axis=first.up_axis,
                 family=first.name_family,
             )
-        except (MotionFormatError, ValueError):
+        except (MotionFormatError, ValueError) as exc:
             for _ in rows:  # e.g. angles so large the rotations are not finite
-                self.stats.drop("malformed")
+                self.stats.drop("malformed", f"frames that cannot be retargeted: {exc}")
             return []
         frames = []
         for i in range(motion.num_frames):
             k = self._count
             frame = SourceFrame(motion.local_quats[i], motion.root_pos[i], k * self._dt, k, recv_s)
             self._count += 1
-            self.stats.accepted += 1
+            self.stats.accept()
             self._queue.put(frame)
             frames.append(frame)
         return frames

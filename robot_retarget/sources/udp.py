@@ -70,15 +70,21 @@ class UdpSource(UdpDatagramSource):
         try:
             pkt = wire.decode(data)
         except wire.WireError as exc:
-            self.stats.drop(exc.reason)
+            self.stats.drop(exc.reason, str(exc))
             return None
         if not self._authorised(pkt.token):
             return None
         if pkt.kind == wire.KIND_ROTATIONS:
             # Finite (the decoder checked) and near 1, so dividing by the norms is safe.
             norms = np.sqrt(np.einsum("ij,ij->i", pkt.values, pkt.values))[:, None]
-            if (np.abs(norms - 1.0) > _QUAT_NORM_TOL).any():
-                self.stats.drop("malformed")
+            off = np.abs(norms - 1.0)
+            if (off > _QUAT_NORM_TOL).any():
+                worst = int(np.argmax(off))
+                self.stats.drop(
+                    "malformed",
+                    f"quaternion {worst} has norm {float(norms[worst, 0]):.4g}, not 1 "
+                    f"(tolerance {_QUAT_NORM_TOL})",
+                )
                 return None
             if not self._filter.accept(pkt.seq, pkt.t_s):
                 return None

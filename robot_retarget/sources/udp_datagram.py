@@ -113,17 +113,22 @@ class UdpDatagramSource(SocketSource):
                 continue
             except OSError:
                 return  # socket closed by stop()
-            self.handle_packet(data, self._clock())
+            try:
+                self.handle_packet(data, self._clock())
+            except Exception as exc:  # no packet may stop the receiver: count it, go on
+                self.stats.drop("malformed", f"unreadable packet ({type(exc).__name__}: {exc})")
 
     def _authorised(self, token: str) -> bool:
         """False (and the drop counted) when a token is required and ``token`` is not it."""
-        if self.token and not hmac.compare_digest(token.encode(), self.token.encode()):
-            self.stats.drop("auth")
+        # surrogatepass: a JSON token may hold lone surrogates, which plain UTF-8 refuses.
+        sent, wanted = (t.encode("utf-8", "surrogatepass") for t in (token, self.token))
+        if self.token and not hmac.compare_digest(sent, wanted):
+            self.stats.drop("auth", "the packet's token is not the one --token set")
             return False
         return True
 
     def _deliver(self, frame: SourceFrame) -> SourceFrame:
-        self.stats.accepted += 1
+        self.stats.accept()
         self._queue.put(frame)
         return frame
 

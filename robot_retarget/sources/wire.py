@@ -86,10 +86,49 @@ class WirePacket:
     token: str
 
 
+MAX_ABS_VALUE = 1e4  # metres (positions, the root); larger is no performer: a sender bug
+
+
 def _finite(a: FloatArray) -> FloatArray:
     if not np.isfinite(a).all():
         raise WireError("packet contains NaN or infinite values", reason="nan")
+    if (np.abs(a) > MAX_ABS_VALUE).any():
+        raise WireError(
+            f"a value of {float(np.abs(a).max()):.3g} (positions are metres; at most "
+            f"{MAX_ABS_VALUE:g})"
+        )
     return a
+
+
+def seconds(value: object) -> float:
+    """A packet's ``t``: a finite number of seconds (WireError otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise WireError("'t' must be a number (seconds)")
+    try:
+        t_s = float(value)
+    except OverflowError:  # an integer too large for a float
+        raise WireError("timestamp is not finite", reason="nan") from None
+    if not math.isfinite(t_s):
+        raise WireError("timestamp is not finite", reason="nan")
+    return t_s
+
+
+def json_object(data: bytes, what: str) -> dict[str, Any]:
+    """A datagram's UTF-8 JSON object (WireError otherwise)."""
+    try:
+        # NaN/Infinity literals parse to floats and are caught by the finite checks.
+        obj = json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise WireError("not UTF-8 text") from None
+    except json.JSONDecodeError as exc:
+        raise WireError(f"not a JSON document ({exc.msg} at column {exc.colno})") from None
+    except RecursionError:
+        raise WireError("JSON nested too deeply") from None
+    except ValueError:  # json refuses integers of more than 4300 digits
+        raise WireError("a number with thousands of digits") from None
+    if not isinstance(obj, dict):
+        raise WireError(f"{what} must be a JSON object")
+    return obj
 
 
 def decode(data: bytes) -> WirePacket:
@@ -136,7 +175,7 @@ def _array(obj: dict[str, Any], key: str, shape: tuple[int, ...]) -> FloatArray:
     value = obj.get(key)
     try:
         a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise WireError(f"'{key}' is not a numeric array") from None
     if a.shape != shape:
         raise WireError(f"'{key}' must have shape {shape}, got {a.shape}")
@@ -146,35 +185,26 @@ def _array(obj: dict[str, Any], key: str, shape: tuple[int, ...]) -> FloatArray:
 def decode_json(data: bytes) -> WirePacket:
     if len(data) > MAX_JSON_BYTES:
         raise WireError(f"JSON packet of {len(data)} bytes", reason="oversized")
-    try:
-        # NaN/Infinity literals parse to floats and are caught by the finite check.
-        obj = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
-        raise WireError("not a UTF-8 JSON document") from None
-    if not isinstance(obj, dict):
-        raise WireError("JSON packet must be an object")
+    obj = json_object(data, "JSON packet")
     if obj.get("v") != WIRE_VERSION:
         raise WireError(f"unsupported version {obj.get('v')!r}; expected {WIRE_VERSION}")
     kind = obj.get("kind")
     seq = obj.get("seq")
     t_s = obj.get("t")
     token = obj.get("token", "")
-    if kind not in _KIND_CODES:
+    if not isinstance(kind, str) or kind not in _KIND_CODES:
         raise WireError(f"unknown kind {kind!r}; expected positions or rotations")
     if isinstance(seq, bool) or not isinstance(seq, int) or seq < 0:
         raise WireError("'seq' must be a non-negative integer")
-    if isinstance(t_s, bool) or not isinstance(t_s, (int, float)):
-        raise WireError("'t' must be a number (seconds)")
-    if not math.isfinite(t_s):
-        raise WireError("timestamp is not finite", reason="nan")
+    t = seconds(t_s)
     if not isinstance(token, str):
         raise WireError("'token' must be a string")
     if kind == KIND_POSITIONS:
         values = _array(obj, "joints", (_J, 3))
-        return WirePacket(kind, seq, float(t_s), values, None, token)
+        return WirePacket(kind, seq, t, values, None, token)
     quats = _array(obj, "quats", (_J, 4))
     root = _array(obj, "root", (3,))
-    return WirePacket(kind, seq, float(t_s), quats, root, token)
+    return WirePacket(kind, seq, t, quats, root, token)
 
 
 def encode_json(

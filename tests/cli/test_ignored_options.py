@@ -64,8 +64,9 @@ def test_stream_and_demo_refuse_options_they_would_ignore(
     ("extra", "says"),
     [
         (["--max-frames", "0"], "--max-frames must be at least 1, got 0"),
-        (["--fps", "inf"], "--fps must be a positive number, got inf"),
-        (["--keypoint-fps", "nan"], "--keypoint-fps must be a positive number, got nan"),
+        (["--fps", "inf"], "--fps must be a frame rate, 1–1000 frames per second, got inf"),
+        (["--fps", "1e9"], "--fps must be a frame rate, 1–1000 frames per second, got 1e+09"),
+        (["--keypoint-fps", "nan"], "--keypoint-fps must be a frame rate, 1–1000 frames"),
     ],
 )
 def test_convert_refuses_bad_numbers_before_any_clip(

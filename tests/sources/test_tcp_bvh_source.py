@@ -135,3 +135,26 @@ def test_split_header_waits_for_frame_time() -> None:
     header, dt, _consumed = found
     assert header.endswith("MOTION\n")
     assert dt == 0.01
+
+
+def test_a_huge_channel_count_is_refused_before_any_row_is_built() -> None:
+    """CHANNELS 9999999999 once built a dummy row of that many values (a MemoryError)."""
+    header, _rows = _split_file()
+    assert b"CHANNELS 3" in header
+    with bvh_server([header.replace(b"CHANNELS 3", b"CHANNELS 9999999999", 1)]) as port:
+        src = TcpBvhSource("127.0.0.1", port, connect_timeout_s=2.0)
+        with pytest.raises(SourceError, match="CHANNELS says 9999999999 channels but lists 3"):
+            src.start()
+
+
+def test_a_sender_that_hangs_up_mid_frame_is_reported() -> None:
+    header, rows = _split_file()
+    with bvh_server([header, rows[0], rows[1][:10]]) as port:
+        src = TcpBvhSource("127.0.0.1", port)
+        with src:
+            frames = _collect(src, 1)
+            deadline = time.monotonic() + 3.0
+            while not src.finished and time.monotonic() < deadline:
+                time.sleep(0.02)
+    assert len(frames) == 1
+    assert "the sender closed the stream; its last frame was cut short" in src.stats.summary()

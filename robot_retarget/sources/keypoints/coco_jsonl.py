@@ -15,8 +15,6 @@ caller's). A score is a confidence in [0, 1]; a point below the threshold is mis
 
 from __future__ import annotations
 
-import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +23,8 @@ import numpy as np
 from robot_retarget.array_types import FloatArray
 from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
-from robot_retarget.sources.keypoints.errors import KeypointFormatError
+from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
+from robot_retarget.sources.keypoints.errors import KeypointFormatError, parse_json
 from robot_retarget.sources.keypoints.frames import Person, PersonFrames
 
 
@@ -39,7 +38,7 @@ def parse_coco_person(person: Any, min_confidence: float) -> Person:
         raise CocoPersonError("needs a 'keypoints' entry")
     try:
         kp = np.asarray(person["keypoints"], dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise CocoPersonError("'keypoints' is not a numeric array") from None
     scores: FloatArray
     if kp.shape == (NUM_KEYPOINTS * 3,):
@@ -51,7 +50,7 @@ def parse_coco_person(person: Any, min_confidence: float) -> Person:
             raise CocoPersonError("17 [x, y] pairs need 'keypoint_scores'")
         try:
             scores = np.asarray(person["keypoint_scores"], dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise CocoPersonError("'keypoint_scores' is not a numeric array") from None
         if scores.shape != (NUM_KEYPOINTS,):
             raise CocoPersonError(f"'keypoint_scores' has shape {scores.shape}, expected (17,)")
@@ -77,16 +76,20 @@ def read_coco_jsonl(
     frames = PersonFrames()
     rate = fps
     index = 0
-    with path.open(encoding="utf-8") as fh:
-        for line in fh:
+    with path.open("rb") as fh:
+        for raw in fh:
+            try:
+                line = raw.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise KeypointFormatError(
+                    f"not UTF-8 text (byte {raw[exc.start]:#04x} at column {exc.start + 1}): "
+                    "JSON lines are UTF-8",
+                    path=path,
+                    frame=index,
+                ) from None
             if not line.strip():
                 continue
-            try:
-                obj = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise KeypointFormatError(
-                    f"not a JSON object ({exc.msg} at column {exc.colno})", path=path, frame=index
-                ) from None
+            obj = parse_json(line, path, index)
             if not isinstance(obj, dict) or not isinstance(people_of(obj), list):
                 raise KeypointFormatError(
                     "each line must be an object with a 'people' (or 'instances') list",
@@ -95,10 +98,11 @@ def read_coco_jsonl(
                 )
             if index == 0 and rate is None and "fps" in obj:
                 rate = obj["fps"]
-                number = isinstance(rate, (int, float)) and not isinstance(rate, bool)
-                if not number or not 0 < rate < math.inf:
+                if not plausible_fps(rate):
                     raise KeypointFormatError(
-                        f"'fps' must be a positive finite number, got {rate!r}", path=path, frame=0
+                        f"'fps' must be a camera frame rate, {FPS_RANGE}, got {rate!r}",
+                        path=path,
+                        frame=0,
                     )
             people = []
             for k, person in enumerate(people_of(obj)):

@@ -19,7 +19,6 @@ normalised x and y have different units.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -28,7 +27,8 @@ import numpy as np
 
 from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS, Coco
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
-from robot_retarget.sources.keypoints.errors import KeypointFormatError
+from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
+from robot_retarget.sources.keypoints.errors import KeypointFormatError, parse_json
 from robot_retarget.sources.keypoints.frames import Person, PersonFrames
 
 NUM_LANDMARKS = 33
@@ -43,13 +43,19 @@ _INDEX = np.array([_MEDIAPIPE[Coco(k).name] for k in range(NUM_KEYPOINTS)], dtyp
 
 def _size(doc: dict[str, Any], key: str, path: Path) -> float:
     value = doc.get(key)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+    size = math.nan
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        try:
+            size = float(value)
+        except OverflowError:  # an integer too large for a float
+            size = math.inf
+    if not 0 < size < math.inf:
         raise KeypointFormatError(
-            f"'{key}' must be the image size in pixels (a positive number), got {value!r}: "
-            "MediaPipe's coordinates are normalised by it",
+            f"'{key}' must be the image size in pixels (a positive number), got "
+            f"{str(value)[:40]}: MediaPipe's coordinates are normalised by it",
             path=path,
         )
-    return float(value)
+    return size
 
 
 def _person(landmarks: object, w: float, h: float, path: Path, frame: int, k: int,
@@ -64,7 +70,7 @@ def _person(landmarks: object, w: float, h: float, path: Path, frame: int, k: in
         try:
             x, y = float(lm["x"]), float(lm["y"])
             c = float(lm.get("visibility", 1.0)) * float(lm.get("presence", 1.0))
-        except (TypeError, KeyError, ValueError, AttributeError):
+        except (TypeError, KeyError, ValueError, AttributeError, OverflowError):
             raise KeypointFormatError(
                 f"person {k}, landmark {i}: needs numeric 'x' and 'y' ('visibility' and "
                 f"'presence' numbers too where given), got {lm!r}"[:300],
@@ -82,11 +88,12 @@ def read_mediapipe_json(
 ) -> KeypointSequence:
     """A MediaPipe landmark JSON (see the module docstring) → the followed person's sequence."""
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        doc = parse_json(path.read_text(encoding="utf-8"), path)
+    except (UnicodeDecodeError, KeypointFormatError) as exc:
+        reason = exc.reason if isinstance(exc, UnicodeDecodeError) else str(exc).split(": ", 1)[1]
         raise KeypointFormatError(
-            f"not a JSON document ({exc}); a .json is read as MediaPipe landmarks, and COCO-17 "
-            "JSON lines (one frame per line) are read from a .jsonl file",
+            f"{reason}; a .json is read as MediaPipe landmarks, and COCO-17 JSON lines (one "
+            "frame per line) are read from a .jsonl file",
             path=path,
         ) from None
     if not (isinstance(doc, dict) and "frames" in doc):
@@ -97,9 +104,9 @@ def read_mediapipe_json(
         )
     w, h = _size(doc, "image_width", path), _size(doc, "image_height", path)
     rate = fps if fps is not None else doc.get("fps", 30.0)
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < math.inf:
+    if not plausible_fps(rate):
         raise KeypointFormatError(
-            f"'fps' must be a positive finite number, got {rate!r}", path=path
+            f"'fps' must be a camera frame rate, {FPS_RANGE}, got {rate!r}", path=path
         )
     frames_doc = doc["frames"]
     if not isinstance(frames_doc, list) or not frames_doc:

@@ -18,7 +18,7 @@ import numpy as np
 from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS, Coco
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
-from robot_retarget.sources.keypoints.errors import KeypointFormatError
+from robot_retarget.sources.keypoints.errors import KeypointFormatError, parse_json
 from robot_retarget.sources.keypoints.frames import PersonFrames
 
 _BODY_25 = {
@@ -60,7 +60,7 @@ def is_openpose_folder(folder: Path) -> bool:
         return False
     try:
         doc = json.loads(files[0].read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
         return True  # claimed by its shape; the reader reports the broken file
     return isinstance(doc, dict) and "people" in doc
 
@@ -80,7 +80,7 @@ def parse_openpose_people(
             )
         try:
             a = np.asarray(values, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise KeypointFormatError(
                 f"person {k}: 'pose_keypoints_2d' holds non-numbers", path=path, frame=frame
             ) from None
@@ -117,8 +117,11 @@ def read_openpose_folder(
     frames = PersonFrames()
     for i, path in enumerate(files):
         try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise KeypointFormatError(f"not a JSON document ({exc})", path=path, frame=i) from None
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as exc:
+            raise KeypointFormatError(
+                f"not UTF-8 text ({exc.reason})", path=path, frame=i
+            ) from None
+        doc = parse_json(text, path, i)
         frames.add(parse_openpose_people(doc, path, i, min_confidence))
     return frames.sequence(fps, source=str(folder))

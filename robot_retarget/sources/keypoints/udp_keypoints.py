@@ -131,7 +131,7 @@ class UdpKeypointSource(UdpDatagramSource):
         try:
             pkt = decode_keypoints(data, self.min_confidence)
         except WireError as exc:
-            self.stats.drop(exc.reason)
+            self.stats.drop(exc.reason, str(exc))
             return None
         if not self._authorised(pkt.token):
             return None

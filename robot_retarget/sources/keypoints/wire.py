@@ -21,7 +21,6 @@ values (robot_retarget.sources.keypoints.coco_jsonl). ``people`` may be empty (n
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,7 +30,7 @@ import numpy.typing as npt
 from robot_retarget.keypoints.sequence import check_image_size
 from robot_retarget.sources.keypoints.coco_jsonl import CocoPersonError, parse_coco_person
 from robot_retarget.sources.keypoints.frames import Person
-from robot_retarget.sources.wire import WIRE_VERSION, WireError
+from robot_retarget.sources.wire import WIRE_VERSION, WireError, json_object, seconds
 
 KIND_COCO17 = "coco17"
 MAX_JSON_BYTES = 32768
@@ -50,21 +49,13 @@ def decode_keypoints(data: bytes, min_confidence: float) -> KeypointPacket:
     """A datagram → KeypointPacket; raises WireError (with a SourceStats drop reason)."""
     if len(data) > MAX_JSON_BYTES:
         raise WireError(f"keypoint packet of {len(data)} bytes", reason="oversized")
-    try:
-        obj = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
-        raise WireError("not a UTF-8 JSON document") from None
-    if not isinstance(obj, dict):
-        raise WireError("keypoint packet must be a JSON object")
+    obj = json_object(data, "keypoint packet")
     if obj.get("v") != WIRE_VERSION or obj.get("kind") != KIND_COCO17:
         raise WireError(f"expected v {WIRE_VERSION}, kind {KIND_COCO17!r}")
     seq, t_s, token = obj.get("seq"), obj.get("t"), obj.get("token", "")
     if isinstance(seq, bool) or not isinstance(seq, int) or seq < 0:
         raise WireError("'seq' must be a non-negative integer")
-    if isinstance(t_s, bool) or not isinstance(t_s, (int, float)):
-        raise WireError("'t' must be a number (seconds)")
-    if not math.isfinite(t_s):
-        raise WireError("timestamp is not finite", reason="nan")
+    t = seconds(t_s)
     if not isinstance(token, str):
         raise WireError("'token' must be a string")
     people_obj = obj.get("people")
@@ -79,7 +70,7 @@ def decode_keypoints(data: bytes, min_confidence: float) -> KeypointPacket:
         if not np.isfinite(xy[valid]).all():
             raise WireError("keypoints contain NaN or infinite values", reason="nan")
         people.append((xy, conf, valid))
-    return KeypointPacket(seq, float(t_s), people, token, _image_size(obj.get("image_size")))
+    return KeypointPacket(seq, t, people, token, _image_size(obj.get("image_size")))
 
 
 def _image_size(value: Any) -> tuple[float, float] | None:
@@ -89,7 +80,7 @@ def _image_size(value: Any) -> tuple[float, float] | None:
     if ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
         try:
             return check_image_size((value[0], value[1]))
-        except ValueError:
+        except (ValueError, OverflowError):
             pass
     raise WireError("'image_size' must be [width, height], two positive pixel counts")
 
