@@ -118,6 +118,11 @@ class ServoFaultError(HardwareError):
         super().__init__(message)
 
 
+class InvalidMotionError(RetargetError, ValueError):
+    """A motion built from values no motion has (a wrong shape, NaN, a non-unit quaternion, a
+    frame rate of 0): a RetargetError, and a ValueError as it always was."""
+
+
 class ServoRangeError(RetargetError, ValueError):
     """A joint angle (or tick value) lies outside what its servo can reach; never wrapped or
     clamped silently. ``value`` is in the unit named by ``unit`` ("rad" or "tick") and

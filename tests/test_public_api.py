@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -64,6 +65,14 @@ def test_api_errors_are_retarget_errors_that_name_what_is_wrong(tmp_path: Path) 
         with pytest.raises(rr.RetargetError, match="fps must be a frame rate, 1–1000"):
             rr.retarget(CLIP, fps=fps)  # type: ignore[arg-type]
     assert rr.retarget(CLIP, fps=np.float32(30.0)).trajectory.fps == 30.0  # numpy numbers too
+    motion = rr.load_motion(CLIP)
+    bad = motion.local_quats.copy()
+    bad[0, 0, 0] = np.nan
+    with pytest.raises(rr.RetargetError, match="must be finite") as info:
+        dataclasses.replace(motion, local_quats=bad)  # a HumanMotion built by hand
+    assert isinstance(info.value, ValueError)  # what it raised before, still caught as such
+    with pytest.raises(rr.RetargetError, match="fps must be positive"):
+        dataclasses.replace(motion, fps=0.0)
     with pytest.raises(rr.RetargetError, match="robot must be a name"):
         rr.retarget(CLIP, robot=None)  # type: ignore[arg-type]
     with pytest.raises(rr.RetargetError, match="a folder; retarget takes one clip"):

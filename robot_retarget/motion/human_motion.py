@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.errors import MotionFormatError
+from robot_retarget.errors import InvalidMotionError, MotionFormatError
 from robot_retarget.geometry import euler
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.motion.bvh import (
@@ -94,23 +94,29 @@ class HumanMotion:
 
     def __post_init__(self) -> None:
         if self.skeleton.names != CANONICAL_JOINTS or self.skeleton.parents != CANONICAL_PARENTS:
-            raise ValueError("HumanMotion needs the canonical 22-joint skeleton (CANONICAL_JOINTS)")
+            raise InvalidMotionError(
+                "HumanMotion needs the canonical 22-joint skeleton (CANONICAL_JOINTS)"
+            )
         q = np.array(self.local_quats, dtype=np.float64)
         root = np.array(self.root_pos, dtype=np.float64)
         if q.ndim != 3 or q.shape[1:] != (len(CANONICAL_JOINTS), 4) or q.shape[0] == 0:
-            raise ValueError(f"local_quats must have shape (T>0, 22, 4), got {q.shape}")
+            raise InvalidMotionError(f"local_quats must have shape (T>0, 22, 4), got {q.shape}")
         if root.shape != (q.shape[0], 3):
-            raise ValueError(f"root_pos must have shape ({q.shape[0]}, 3), got {root.shape}")
+            raise InvalidMotionError(
+                f"root_pos must have shape ({q.shape[0]}, 3), got {root.shape}"
+            )
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(root))):
-            raise ValueError("local_quats and root_pos must be finite")
+            raise InvalidMotionError("local_quats and root_pos must be finite")
         norms = np.linalg.norm(q, axis=-1)
         if np.any(np.abs(norms - 1.0) > _UNIT_TOL):
             worst = float(norms.flat[np.argmax(np.abs(norms - 1.0))])
-            raise ValueError(f"local_quats must be unit quaternions (worst norm {worst:.6g})")
+            raise InvalidMotionError(
+                f"local_quats must be unit quaternions (worst norm {worst:.6g})"
+            )
         if not (math.isfinite(self.fps) and self.fps > 0.0):
-            raise ValueError(f"fps must be positive, got {self.fps}")
+            raise InvalidMotionError(f"fps must be positive, got {self.fps}")
         if self.source_joints and len(self.source_joints) != len(CANONICAL_JOINTS):
-            raise ValueError("source_joints needs one entry per canonical joint")
+            raise InvalidMotionError("source_joints needs one entry per canonical joint")
         q = quat.make_continuous(q / norms[..., None], axis=0)
         q.setflags(write=False)
         root.setflags(write=False)
@@ -160,13 +166,15 @@ class HumanMotion:
         """The motion restricted to frames ``start:stop``."""
         q = self.local_quats[start:stop]
         if q.shape[0] == 0:
-            raise ValueError(f"frames({start}, {stop}) selects no frame of {self.num_frames}")
+            raise InvalidMotionError(
+                f"frames({start}, {stop}) selects no frame of {self.num_frames}"
+            )
         return dataclasses.replace(self, local_quats=q, root_pos=self.root_pos[start:stop])
 
     def resample(self, fps: float) -> HumanMotion:
         """Resample to ``fps`` over the same time span: slerp rotations, lerp the root."""
         if not (math.isfinite(fps) and fps > 0.0):
-            raise ValueError(f"fps must be positive, got {fps}")
+            raise InvalidMotionError(f"fps must be positive, got {fps}")
         span_s = (self.num_frames - 1) / self.fps
         count = math.floor(span_s * fps + 1e-9) + 1
         x = np.arange(count) * (self.fps / fps)
