@@ -81,5 +81,5 @@ def retarget(
     else:
         loaded = model
     step = RetargetStep(config, loaded, motion.skeleton, rate_hz=fps, foot_lock=foot_lock)
-    result = convert_motion(motion, step, fps=fps)
+    result = convert_motion(motion, step, fps=fps, whole_clip_branches=True)  # as convert
     return RetargetResult(result.trajectory, result, loaded.name)

@@ -97,6 +97,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "encoder for it; this feeds it the canonical joints instead, as stream does",
     )
     add_foot_lock_argument(parser)
+    parser.add_argument(
+        "--stream-branches",
+        action="store_true",
+        help="settle each limb in the first frame's best branch, as stream does (the file then "
+        "matches a stream of the clip at the same rate); default: each limb's branch chosen "
+        "on the whole clip",
+    )
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     parser.add_argument(
         "--lead-in",
@@ -267,6 +274,7 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
         keypoint_image_planes=args.image_planes,
         canonical_input=args.canonical_input,
         foot_lock=args.foot_lock,
+        whole_clip_branches=not args.stream_branches,
     )
 
 
@@ -331,6 +339,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         "max_frames": options.max_frames,
         "lead_in": options.lead_in,
         "foot_lock": options.foot_lock,
+        "whole_clip_branches": options.whole_clip_branches,
         "format": args.format or "npz",
     }
     manifest = Manifest.open(args.out, settings, fresh=args.force)

@@ -263,6 +263,9 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
         if args.keypoint_model and not args.clip_keypoint_model
         else load_keypoint_model(args.clip_keypoint_model, whole_clip=True),
         pipeline=pipeline_runner(config, model, foot_lock=args.foot_lock),
+        stream_pipeline=pipeline_runner(
+            config, model, foot_lock=args.foot_lock, whole_clip_branches=False
+        ),
         max_frames=args.max_frames,
         image_planes=args.image_planes,
         progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True),

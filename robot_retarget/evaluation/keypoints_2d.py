@@ -185,13 +185,22 @@ def evaluate_2d(
     noise: EstimatorNoise | None = None,
     seed: int = 0,
     pipeline: PipelineFn | None = None,
+    stream_pipeline: PipelineFn | None = None,
     image_planes: bool = True,
     progress: Callable[[str], None] | None = None,
 ) -> Eval2DReport:
     """Score every clip from 3D and from 2D through every held-out view (module docstring);
     ``keypoint_model`` lifts the ``stream`` rows, ``clip_keypoint_model`` (if given, else the
-    same) the ``clip`` rows; ``image_planes`` as ``convert`` and ``stream`` (keypoints.lift)."""
+    same) the ``clip`` rows; ``image_planes`` as ``convert`` and ``stream`` (keypoints.lift).
+    ``pipeline`` runs the 3D and clip rows (as ``convert``), ``stream_pipeline`` the stream
+    rows (default: the same pipeline with each limb in its first frame's branch, as ``stream``
+    cannot see ahead)."""
     run = pipeline or pipeline_runner(config, model)
+    # The stream rows as stream runs them: no look at the whole clip for the limbs' branches.
+    runs = {
+        False: run,
+        True: stream_pipeline or pipeline_runner(config, model, whole_clip_branches=False),
+    }
     scorer = Scorer(config)
     noise = noise or EstimatorNoise()
     lifters = {True: keypoint_model, False: clip_keypoint_model or keypoint_model}
@@ -212,7 +221,7 @@ def evaluate_2d(
                     lifted = world_heading(lifted, cam)
                     own = scorer.score_lifted(truth, lifted)
                     rows.setdefault(f"lifted, {label[3:]}", InputScore()).add(*own)
-                    scores = scorer.score_run(truth, run(lifted))
+                    scores = scorer.score_run(truth, runs[causal](lifted))
                     rows.setdefault(f"{label} @ {elevation:g}°", InputScore()).add(*scores)
                     rows.setdefault(label, InputScore()).add(*scores)
         if progress is not None:

@@ -98,11 +98,19 @@ class LimbBranches:
         neg[joints] = -q[joints]
         return [q, zero, neg]
 
-    def best(self, source: BufferedSolver, q: FloatArray) -> tuple[FloatArray, float]:
-        """Every limb in turn from its best start, the other joints held: (pose, cost)."""
+    def best(
+        self, source: BufferedSolver, q: FloatArray, choice: tuple[int | None, ...] | None = None
+    ) -> tuple[FloatArray, float]:
+        """Every limb in turn from its best start, the other joints held: (pose, cost).
+        ``choice``: per limb, the index of the start (in :meth:`starts`) whose optimum it takes
+        instead of the best (the best where that solve failed)."""
         out = q.copy()
         cost = math.inf
-        for joints in self.limbs:
+        for k, joints in enumerate(self.limbs):
             results = [self.optimum(source, out, joints, s) for s in self.starts(out, joints)]
-            out, cost = min(results, key=lambda r: r[1])
+            pick = min(results, key=lambda r: r[1])
+            chosen = None if choice is None else choice[k]
+            if chosen is not None and math.isfinite(results[chosen][1]):
+                pick = results[chosen]
+            out, cost = pick
         return out, cost

@@ -413,7 +413,9 @@ class Retargeter:
             message=status_text,
         )
 
-    def settle(self, targets: FrameTargets) -> SolveResult:
+    def settle(
+        self, targets: FrameTargets, branches: tuple[int | None, ...] | None = None
+    ) -> SolveResult:
         """One frame solved to its optimum with no velocity limit: the start of a sequence.
 
         The result becomes the history (as if the robot had rested there), so the next
@@ -451,7 +453,7 @@ class Retargeter:
             (_SETTLE_DT_S, _SETTLE_SOLVES, _SETTLE_TOL_RAD, True),
         ):
             self._restart(start.copy(), start.copy(), x0)
-            candidates.append(self._settle_from(targets, dt, max_solves, tol, warm))
+            candidates.append(self._settle_from(targets, dt, max_solves, tol, warm, branches))
         # A point that broke its constraints (fallback) only wins if every candidate did.
         result = min(candidates, key=lambda r: (r.used_fallback, r.cost))
         self._restart(result.q.copy(), result.q.copy(), result.q)
@@ -464,6 +466,7 @@ class Retargeter:
         max_solves: int,
         tol_rad: float,
         warm_start: bool,
+        branches: tuple[int | None, ...] | None = None,
     ) -> SolveResult:
         """Re-solve one frame from the last command at time step ``dt_s`` until no joint moves
         by more than ``tol_rad`` (at most ``max_solves``), then the limbs' multi-start.
@@ -478,7 +481,7 @@ class Retargeter:
                 break
         if self._branches is not None:
             # Every limb from its best start: a sequence keeps the branch it starts in.
-            q, cost = self._branches.best(self._online, result.q)
+            q, cost = self._branches.best(self._online, result.q, branches)
             result = dataclasses.replace(result, q=q, cost=cost)
         return result
 

@@ -50,6 +50,9 @@ class ConvertOptions:
     canonical_input: bool = False
     # The residual network's foot lock (off on the robot by default: RetargetStep).
     foot_lock: bool = False
+    # Each limb's branch chosen on the whole clip (robot_retarget.pipeline.limb_branch_choice);
+    # False: the first frame's best, as ``stream`` runs it.
+    whole_clip_branches: bool = True
 
 
 @dataclass(frozen=True)
@@ -187,6 +190,7 @@ class ClipConverter:
             progress=progress,
             lead_in_speed_fraction=0.25 if opt.lead_in else None,
             network=None if network is None else network.step,
+            whole_clip_branches=opt.whole_clip_branches,
         )
         traj = result.trajectory
         folders = job.make_folders

@@ -95,6 +95,7 @@ def convert_motion(
     progress: Callable[[int, int], None] | None = None,
     lead_in_speed_fraction: float | None = None,
     network: OnlineStep | None = None,
+    whole_clip_branches: bool = False,
 ) -> ClipResult:
     """Retarget ``motion`` frame by frame at ``fps`` (default: the robot's control rate).
 
@@ -102,6 +103,10 @@ def convert_motion(
     frame at that fraction of each joint's velocity limit (the stream's ramp speed is 0.25),
     stamped before the clip: ``t0`` < 0, the clip itself still starts at t = 0 and is
     unchanged. Without it the file starts at the clip's first frame.
+
+    ``whole_clip_branches``: choose each limb's branch on the whole clip
+    (:mod:`robot_retarget.pipeline.limb_branch_choice`, what ``convert`` does); False keeps the
+    first frame's best, as ``stream`` does, and the file then matches a stream of the clip.
 
     ``network``: the network step to use instead of the model's own (e.g. a
     :class:`~robot_retarget.pipeline.precomputed_step.PrecomputedStep` of the clip read on its
@@ -117,6 +122,11 @@ def convert_motion(
     step.set_source(m.skeleton)
     if network is not None:
         step.online = network
+    t_start = time.perf_counter()  # the conversion's wall time includes the branch choice
+    if whole_clip_branches:
+        from robot_retarget.pipeline.limb_branch_choice import choose_branches
+
+        step.settle_branches = choose_branches(m, step, dt)
     step.reset(config.init_pose)
     n = m.num_frames
     q = np.empty((n, config.num_joints))
@@ -124,7 +134,6 @@ def convert_motion(
     root_quat = np.empty((0, 4))
     trunk = np.empty((n, 3, 3))  # the frames the limbs were solved in: the base turns with them
     frame_ms = np.empty(n)
-    t_start = time.perf_counter()
     for t in range(n):
         t0 = time.perf_counter()
         out = step(m.local_quats[t], m.root_pos[t], dt, settle=t == 0)
@@ -137,6 +146,7 @@ def convert_motion(
         if progress is not None:
             progress(t + 1, n)
     wall = time.perf_counter() - t_start
+    step.settle_branches = None
     safety.disconnect()
     # The base link's pose in the robot's world (Z up, x forward), feet on the ground.
     base = floating_base(config, m, q, trunk_frames=trunk) if n else None

@@ -88,6 +88,9 @@ class RetargetStep:
         # numpy targets and writers (the benchmarks' reference).
         self.live = LiveFrameSolver(self.retargeter, self.target_builder) if frame_program else None
         self.stats = StepStats()
+        # Per limb, the start whose optimum a settle takes (None: the best; convert's
+        # whole-clip branch choice sets it, robot_retarget.pipeline.limb_branch_choice).
+        self.settle_branches: tuple[int | None, ...] | None = None
         self.set_source(source_skeleton)
 
     def set_source(self, source_skeleton: Skeleton) -> None:
@@ -145,7 +148,7 @@ class RetargetStep:
             targets = self.target_builder(quats)
             t2 = time.perf_counter()
             if settle:
-                result = self.retargeter.settle(targets)
+                result = self.retargeter.settle(targets, self.settle_branches)
             else:
                 result = self.retargeter.solve(targets, dt_s, q_prev=q_prev)
             trunk = _trunk_frame(targets)

@@ -180,9 +180,17 @@ class EvalRobotReport:
 PipelineFn = Callable[[HumanMotion], PipelineRun]
 
 
-def pipeline_runner(config: RobotConfig, model: str, *, foot_lock: bool = False) -> PipelineFn:
-    """The full pipeline (network → optimizer → safety) as one function of a motion;
-    ``foot_lock``: run the network's foot lock (``--foot-lock``; off on the robot by default)."""
+def pipeline_runner(
+    config: RobotConfig,
+    model: str,
+    *,
+    foot_lock: bool = False,
+    whole_clip_branches: bool = True,
+) -> PipelineFn:
+    """The full pipeline (network → optimizer → safety) as one function of a motion, as
+    ``convert`` runs it; ``foot_lock``: run the network's foot lock (``--foot-lock``; off on the
+    robot by default); ``whole_clip_branches`` False: each limb in the first frame's best
+    branch, as ``stream`` runs it (robot_retarget.pipeline.limb_branch_choice)."""
     from robot_retarget.pipeline.convert import convert_motion
     from robot_retarget.pipeline.step import RetargetStep
 
@@ -192,7 +200,7 @@ def pipeline_runner(config: RobotConfig, model: str, *, foot_lock: bool = False)
         nonlocal step
         if step is None:
             step = RetargetStep(config, model, motion.skeleton, foot_lock=foot_lock)
-        result = convert_motion(motion, step)
+        result = convert_motion(motion, step, whole_clip_branches=whole_clip_branches)
         traj = result.trajectory
         frame_ms = traj.frame_ms
         ms = (
