@@ -36,6 +36,15 @@ def _packet(motion: HumanMotion, seq: int, t: str, **extra: object) -> bytes:
     ).encode()
 
 
+def _first_frames(src: UdpSource, timeout_s: float = 3.0) -> list[SourceFrame]:
+    frames: list[SourceFrame] = []
+    deadline = time.monotonic() + timeout_s
+    while not frames and time.monotonic() < deadline:
+        frames += src.poll(time.monotonic())
+        time.sleep(0.005)
+    return frames
+
+
 def test_packets_that_once_killed_the_receiver_are_dropped_and_it_goes_on(
     motion: HumanMotion,
 ) -> None:
@@ -61,11 +70,7 @@ def test_packets_that_once_killed_the_receiver_are_dropped_and_it_goes_on(
         for data in poison:
             tx.sendto(data, src.address)
         tx.sendto(_packet(motion, 2, "0.2", token="s3cret"), src.address)
-        frames: list[SourceFrame] = []
-        deadline = time.monotonic() + 3.0
-        while not frames and time.monotonic() < deadline:
-            frames += src.poll(time.monotonic())
-            time.sleep(0.005)
+        frames = _first_frames(src)
     assert [f.seq for f in frames] == [2]
     assert src.stats.dropped_total == len(poison)
 
@@ -221,10 +226,6 @@ def test_whatever_a_packet_raises_the_receiver_counts_it_and_goes_on(
     ):
         tx.sendto(_packet(motion, 1, "0.1"), src.address)
         tx.sendto(_packet(motion, 2, "0.2"), src.address)
-        frames: list[SourceFrame] = []
-        deadline = time.monotonic() + 3.0
-        while not frames and time.monotonic() < deadline:
-            frames += src.poll(time.monotonic())
-            time.sleep(0.005)
+        frames = _first_frames(src)
     assert [f.seq for f in frames] == [2]
     assert "RuntimeError: a decoder bug" in src.stats.summary()

@@ -67,6 +67,12 @@ def _collect(src: TcpBvhSource, count: int, timeout_s: float = 5.0) -> list[Sour
     return out
 
 
+def _wait_finished(src: TcpBvhSource, timeout_s: float = 3.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not src.finished and time.monotonic() < deadline:
+        time.sleep(0.02)
+
+
 def test_stream_matches_the_file_loader() -> None:
     header, rows = _split_file()
     # Header and rows split at awkward places, as TCP may deliver them.
@@ -96,9 +102,7 @@ def test_bad_lines_are_dropped_and_counted() -> None:
         src = TcpBvhSource("127.0.0.1", port)
         with src:
             frames = _collect(src, 2)
-            deadline = time.monotonic() + 3.0
-            while not src.finished and time.monotonic() < deadline:
-                time.sleep(0.02)
+            _wait_finished(src)
     assert len(frames) == 2
     assert src.stats.dropped["malformed"] == 2
     assert src.stats.dropped["nan"] == 1
@@ -153,8 +157,6 @@ def test_a_sender_that_hangs_up_mid_frame_is_reported() -> None:
         src = TcpBvhSource("127.0.0.1", port)
         with src:
             frames = _collect(src, 1)
-            deadline = time.monotonic() + 3.0
-            while not src.finished and time.monotonic() < deadline:
-                time.sleep(0.02)
+            _wait_finished(src)
     assert len(frames) == 1
     assert "the sender closed the stream; its last frame was cut short" in src.stats.summary()
