@@ -193,14 +193,13 @@ def evaluate_2d(
     ``keypoint_model`` lifts the ``stream`` rows, ``clip_keypoint_model`` (if given, else the
     same) the ``clip`` rows; ``image_planes`` as ``convert`` and ``stream`` (keypoints.lift).
     ``pipeline`` runs the 3D and clip rows (as ``convert``), ``stream_pipeline`` the stream
-    rows (default: the same pipeline with each limb in its first frame's branch, as ``stream``
-    cannot see ahead)."""
+    rows (default: ``pipeline`` when given, else the shipped pipeline with each limb in its first
+    frame's branch, as ``stream`` cannot see ahead)."""
     run = pipeline or pipeline_runner(config, model)
     # The stream rows as stream runs them: no look at the whole clip for the limbs' branches.
-    runs = {
-        False: run,
-        True: stream_pipeline or pipeline_runner(config, model, whole_clip_branches=False),
-    }
+    if stream_pipeline is None:  # a caller's own pipeline runs every row
+        stream_pipeline = pipeline or pipeline_runner(config, model, whole_clip_branches=False)
+    runs = {False: run, True: stream_pipeline}
     scorer = Scorer(config)
     noise = noise or EstimatorNoise()
     lifters = {True: keypoint_model, False: clip_keypoint_model or keypoint_model}

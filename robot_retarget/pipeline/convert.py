@@ -123,30 +123,33 @@ def convert_motion(
     if network is not None:
         step.online = network
     t_start = time.perf_counter()  # the conversion's wall time includes the branch choice
-    if whole_clip_branches:
-        from robot_retarget.pipeline.limb_branch_choice import choose_branches
+    try:
+        step.settle_branches = None
+        if whole_clip_branches:
+            from robot_retarget.pipeline.limb_branch_choice import choose_branches
 
-        step.settle_branches = choose_branches(m, step, dt)
-    step.reset(config.init_pose)
-    n = m.num_frames
-    q = np.empty((n, config.num_joints))
-    root_pos = np.empty((0, 3))
-    root_quat = np.empty((0, 4))
-    trunk = np.empty((n, 3, 3))  # the frames the limbs were solved in: the base turns with them
-    frame_ms = np.empty(n)
-    for t in range(n):
-        t0 = time.perf_counter()
-        out = step(m.local_quats[t], m.root_pos[t], dt, settle=t == 0)
-        if t == 0:
-            safety.reset(out.q)  # the step bound starts at the first frame's optimum
-        sent = safety.send(JointCommand(out.q, t * dt * _STAMP_STRETCH))
-        frame_ms[t] = (time.perf_counter() - t0) * 1e3
-        q[t] = sent.q
-        trunk[t] = out.trunk_frame
-        if progress is not None:
-            progress(t + 1, n)
+            step.settle_branches = choose_branches(m, step, dt)
+        step.reset(config.init_pose)
+        n = m.num_frames
+        q = np.empty((n, config.num_joints))
+        root_pos = np.empty((0, 3))
+        root_quat = np.empty((0, 4))
+        trunk = np.empty((n, 3, 3))  # the frames the limbs were solved in: the base turns with them
+        frame_ms = np.empty(n)
+        for t in range(n):
+            t0 = time.perf_counter()
+            out = step(m.local_quats[t], m.root_pos[t], dt, settle=t == 0)
+            if t == 0:
+                safety.reset(out.q)  # the step bound starts at the first frame's optimum
+            sent = safety.send(JointCommand(out.q, t * dt * _STAMP_STRETCH))
+            frame_ms[t] = (time.perf_counter() - t0) * 1e3
+            q[t] = sent.q
+            trunk[t] = out.trunk_frame
+            if progress is not None:
+                progress(t + 1, n)
+    finally:
+        step.settle_branches = None  # never left for the next clip (or a stream) to inherit
     wall = time.perf_counter() - t_start
-    step.settle_branches = None
     safety.disconnect()
     # The base link's pose in the robot's world (Z up, x forward), feet on the ground.
     base = floating_base(config, m, q, trunk_frames=trunk) if n else None

@@ -392,8 +392,9 @@ class SimulatedBus:
     def _advance(self, now: float) -> None:
         dt = now - self._last_advance
         if dt > 0.0:
-            for servo in self.servos.values():
-                servo.advance(dt)
+            for group in self._on_id.values():  # twins on one ID move too
+                for servo in group:
+                    servo.advance(dt)
             self._last_advance = now
 
     def _execute(self, pkt: p.Packet, now: float) -> list[tuple[int, bytes]]:
@@ -402,7 +403,7 @@ class SimulatedBus:
             return []  # another servo's reply on the line (Protocol 2.0): nothing to do
         self._heard = self._hearing()
         self._as_id = None if pkt.servo_id == p.BROADCAST_ID else pkt.servo_id
-        levels = {i: g[0].get("status_return_level") for i, g in self._heard.items()}
+        levels = {i: g[0].status_return_level for i, g in self._heard.items()}
         try:
             replies = self._execute_v2(pkt) if self.protocol == 2.0 else self._execute_v1(pkt)
         finally:

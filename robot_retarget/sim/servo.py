@@ -59,6 +59,11 @@ _VELOCITY_MODE = 1
 _CURRENT_BASED_POSITION_MODE = 5  # position over many turns, the current limited
 _MAX_SINGLE_TURN_HOMING = 1024  # valid Homing Offset range in Position Control Mode
 _MULTI_TURN_GOAL = 1_048_575  # XM430 Goal Position range in modes 4 and 5
+# Registers the servo itself keeps writing; any other changes its mode, limits or frame.
+_STATE_REGISTERS = frozenset(
+    ("present_position", "present_velocity", "present_speed", "moving", "goal_position",
+     "hardware_error_status", "registered", "registered_instruction", "torque_enable")
+)  # fmt: skip
 _INDIRECT_TARGETS = (64, 661)  # what an XM430 Indirect Address may name
 _MX_MULTI_TURN_GOAL = 28_672  # MX (Protocol 1.0) Goal Position range in multi-turn mode
 # Values a register takes (e-Manual); anything else is a Data Range Error.
@@ -90,12 +95,15 @@ class SimServo:
         self.table: ControlTable = control_table(model)
         self.protocol = self.table.protocol
         self.memory = bytearray(self.table.memory_size)
+        self._frame: tuple[str, bool, int, tuple[int, int]] | None = None
         self._by_address: dict[int, Register] = {}
         self._owner: list[Register | None] = [None] * len(self.memory)  # each byte's register
         for reg in self.table.registers.values():
             self._by_address[reg.address] = reg
             self._owner[reg.address : reg.address + reg.size] = [reg] * reg.size
             self.memory[reg.address : reg.address + reg.size] = le_bytes(reg.default, reg.size)
+        self._id_address = self.table["id"].address
+        self._srl_address = self.table["status_return_level"].address
         self._put("id", servo_id)
         indirect = "indirect_address_1" in self.table
         self._indirect_blocks = XM430_INDIRECT_BLOCKS if indirect else ()
@@ -111,7 +119,12 @@ class SimServo:
     @property
     def servo_id(self) -> int:
         """The ID it answers to: its ID register (a write there moves it to another ID)."""
-        return self.get("id")
+        return self.memory[self._id_address]  # one byte on every model
+
+    @property
+    def status_return_level(self) -> int:
+        """0: a status for PING only; 1: for PING and reads; 2: for every instruction."""
+        return self.memory[self._srl_address]
 
     # ----- registers -------------------------------------------------------------------------
     def get(self, name: str) -> int:
@@ -123,6 +136,8 @@ class SimServo:
     def _put(self, name: str, value: int) -> None:
         reg = self.table[name]
         self.memory[reg.address : reg.address + reg.size] = le_bytes(value, reg.size)
+        if name not in _STATE_REGISTERS:
+            self._frame = None
 
     @property
     def torque_on(self) -> bool:
@@ -141,6 +156,18 @@ class SimServo:
         self._put("goal_position", self.user_from_horn(self.rad_to_ticks(q_rad)))
 
     def mode(self) -> str:
+        return self._settings()[0]
+
+    def _settings(self) -> tuple[str, bool, int, tuple[int, int]]:
+        """(mode, reversed, homing offset, goal limits), read from the registers once per
+        change of them: the simulated bus asks for them on every packet."""
+        if self._frame is None:
+            mode = self._read_mode()
+            self._frame = (mode, self._read_reversed(), self._read_homing(), (0, 0))
+            self._frame = (*self._frame[:3], self._read_position_limits(mode))
+        return self._frame
+
+    def _read_mode(self) -> str:
         """How the servo moves: "position" (within its limits), "multi-turn" (XM430 modes 4
         and 5, MX with both angle limits at 4095: the position limits do not apply),
         "velocity" (XM430 mode 1: Goal Velocity), "wheel" (AX/MX with both angle limits 0:
@@ -159,7 +186,9 @@ class SimServo:
         return "position"
 
     def _position_limits(self) -> tuple[int, int]:
-        mode = self.mode()
+        return self._settings()[3]
+
+    def _read_position_limits(self, mode: str) -> tuple[int, int]:
         if mode == "multi-turn":
             span = _MULTI_TURN_GOAL if self.protocol == 2.0 else _MX_MULTI_TURN_GOAL
             return -span, span
@@ -178,7 +207,7 @@ class SimServo:
         return OK, bytes(self.memory[self._through_indirect(a)] for a in range(address, end))
 
     def _touches_indirect(self, start: int, end: int) -> bool:
-        return any(
+        return bool(self._indirect_blocks) and any(
             start < data0 + XM430_INDIRECT_PER_BLOCK and data0 < end
             for _, data0 in self._indirect_blocks
         )
@@ -207,7 +236,10 @@ class SimServo:
         end = address + len(data)
         if not data or address < 0 or end > len(self.memory):
             return ACCESS_ERROR
-        regs = [r for a, r in self._by_address.items() if address <= a < end]
+        # The registers that start inside the span, in address order (each byte's owner).
+        regs = list(
+            {id(r): r for r in self._owner[address:end] if r and r.address >= address}.values()
+        )
         for reg in regs:
             if reg.address + reg.size > end:
                 return DATA_LENGTH_ERROR  # would split a register
@@ -215,8 +247,15 @@ class SimServo:
                 return ACCESS_ERROR
         if address not in self._by_address or not regs:
             return ACCESS_ERROR
-        if not self._touches_indirect(address, end):
-            return self._commit(self.memory[:address] + data + self.memory[end:], regs)
+        if not self._touches_indirect(address, end):  # the common case: no copy of the memory
+            for reg in regs:
+                code = self._check_value(
+                    reg, data[reg.address - address : reg.address - address + reg.size]
+                )
+                if code != OK:
+                    return code
+            self.memory[address:end] = data
+            return self._accepted()
         new = bytearray(self.memory)
         touched = {r.address: r for r in regs}
         for a, byte in zip(range(address, end), data, strict=True):
@@ -236,6 +275,10 @@ class SimServo:
             if code != OK:
                 return code
         self.memory[:] = new  # a goal is stored; the horn moves only with torque on
+        return self._accepted()
+
+    def _accepted(self) -> int:
+        self._frame = None  # the mode, limits or user frame may have changed
         if self.hardware_error and self.protocol == 2.0 and self.get("torque_enable"):
             self._put("torque_enable", 0)  # after a shutdown only a reboot re-enables torque
         self.writes += 1
@@ -262,9 +305,15 @@ class SimServo:
 
     # User frame (registers) ↔ the horn's own ticks: reverse mirrors, Homing Offset shifts.
     def _reversed(self) -> bool:
-        return "drive_mode" in self.table and bool(self.get("drive_mode") & 0x01)
+        return self._settings()[1]
 
     def _homing(self) -> int:
+        return self._settings()[2]
+
+    def _read_reversed(self) -> bool:
+        return "drive_mode" in self.table and bool(self.get("drive_mode") & 0x01)
+
+    def _read_homing(self) -> int:
         if "homing_offset" not in self.table:
             return 0
         offset = self.get("homing_offset")
@@ -363,9 +412,11 @@ class SimServo:
         """Clears the hardware error and re-initialises the RAM area (torque off, LED off,
         profiles and gains at their defaults); the goal is where the horn is."""
         self.hardware_error = 0
+        self.registered = None  # a Reg Write does not survive a reboot
         for reg in self.table.registers.values():
             if not reg.eeprom:
                 self.memory[reg.address : reg.address + reg.size] = le_bytes(reg.default, reg.size)
+        self._frame = None
         self.set_present_rad(self.dynamics.q_rad)
         self.dynamics.velocity_rad_s = 0.0
 

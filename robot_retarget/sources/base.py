@@ -24,6 +24,7 @@ DEFAULT_QUEUE_FRAMES = 256
 """Frames a network source buffers between two polls before it drops the oldest."""
 
 WARN_AFTER = 30  # consecutive packets a sender got wrong before a live warning
+MAX_MESSAGE_CHARS = 200
 _SENDER_FAULTS = frozenset(("oversized", "malformed", "nan", "auth"))
 DROP_REASONS: tuple[str, ...] = (
     "oversized",
@@ -76,7 +77,9 @@ class SourceStats:
         a wrong token) that come :data:`WARN_AFTER` in a row raise a live warning with the
         last one's ``message``, again every ten times as many while it lasts."""
         self.dropped[reason] = self.dropped.get(reason, 0) + 1
-        if message:
+        if message:  # a sender writes part of it (a 16 kB 'kind'): kept to a line
+            if len(message) > MAX_MESSAGE_CHARS:
+                message = message[: MAX_MESSAGE_CHARS - 1] + "…"
             self.last_messages[reason] = message
         if reason not in _SENDER_FAULTS:
             return

@@ -47,3 +47,21 @@ def test_op3_left_arm_follows_the_daz_walk(shared_data_dir: Path) -> None:
         errors[whole_clip] = float(np.degrees(np.median(angles[:, left_arm])))
     assert errors[False] > 60.0  # the first frame's branch: horizontal, as stream keeps it
     assert errors[True] < 30.0  # 21.6°, as the right arm, never trapped (20.7°)
+
+
+def test_a_failed_conversion_leaves_no_branch_choice_behind() -> None:
+    """The choice lives for one clip: an exception mid-clip (here from the progress callback)
+    must not hand it to the next clip or to a stream on the same step."""
+    from robot_retarget.motion.synthetic import demo_motion
+
+    op3 = load_robot_config("op3")
+    motion = demo_motion(fps=30.0).frames(0, 30)
+    step = RetargetStep(op3, default_model_name(), motion.skeleton)
+
+    def fail(done: int, total: int) -> None:
+        if done == 3:
+            raise RuntimeError("stop")
+
+    with pytest.raises(RuntimeError, match="stop"):
+        convert_motion(motion, step, whole_clip_branches=True, progress=fail)
+    assert step.settle_branches is None

@@ -255,3 +255,19 @@ def test_indirect_addresses_of_an_xm430(v2_client: Client, v2_bus: SimulatedBus)
     assert ph.write1ByteTxRx(port, 1, 224, 7) == (OK, 0x04)  # Torque Enable takes 0 or 1
     assert ph.write1ByteTxRx(port, 1, 224, 1) == (OK, 0)
     assert v2_bus.servos[1].torque_on
+
+
+def test_twins_both_move_and_a_reboot_forgets_a_reg_write() -> None:
+    t = [0.0]
+    a, b = SimServo(1, "XM430-W350"), SimServo(2, "XM430-W350")
+    bus = SimulatedBus([a, b], protocol=2.0, clock=lambda: t[0])
+    bus.feed(p.build_v2(2, p.INST_WRITE, le(7, 2) + b"\x01"))  # 2 → 1: twins
+    bus.feed(p.build_v2(1, p.INST_WRITE, le(64, 2) + b"\x01"))
+    bus.feed(p.build_v2(1, p.INST_WRITE, le(116, 2) + le(3000, 4)))
+    t[0] += 1.0
+    bus.feed(p.build_v2(1, p.INST_PING, b""))
+    assert a.get("present_position") > 2900
+    assert b.get("present_position") > 2900
+    bus.feed(p.build_v2(1, p.INST_REG_WRITE, le(65, 2) + b"\x01"))
+    a.reboot()
+    assert a.registered is None

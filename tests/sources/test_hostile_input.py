@@ -229,3 +229,24 @@ def test_whatever_a_packet_raises_the_receiver_counts_it_and_goes_on(
         frames = _first_frames(src)
     assert [f.seq for f in frames] == [2]
     assert "RuntimeError: a decoder bug" in src.stats.summary()
+
+
+def test_a_drop_message_is_kept_to_a_line() -> None:
+    stats = SourceStats()
+    stats.drop("malformed", "unknown kind " + "x" * 16_000)
+    assert len(stats.last_messages["malformed"]) == 200
+    assert len(stats.summary()) < 400
+
+
+def test_keypoint_files_with_a_byte_order_mark_read(tmp_path: Path) -> None:
+    for name in ("coco17.jsonl", "mediapipe_pose.json"):
+        path = tmp_path / name
+        path.write_bytes(codecs.BOM_UTF8 + (FIXTURES / "keypoints" / name).read_bytes())
+        assert (
+            load_keypoints(path).num_frames
+            == load_keypoints(FIXTURES / "keypoints" / name).num_frames
+        )
+    utf16 = tmp_path / "utf16.json"
+    utf16.write_bytes((FIXTURES / "keypoints" / "mediapipe_pose.json").read_text().encode("utf-16"))
+    with pytest.raises(KeypointFormatError, match="not UTF-8 text"):
+        load_keypoints(utf16)

@@ -79,7 +79,7 @@ def read_coco_jsonl(
     with path.open("rb") as fh:
         for raw in fh:
             try:
-                line = raw.decode("utf-8")
+                line = raw.decode("utf-8-sig" if index == 0 else "utf-8")
             except UnicodeDecodeError as exc:
                 raise KeypointFormatError(
                     f"not UTF-8 text (byte {raw[exc.start]:#04x} at column {exc.start + 1}): "

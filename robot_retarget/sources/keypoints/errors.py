@@ -9,18 +9,38 @@ from typing import Any
 from robot_retarget.errors import MotionFormatError
 
 
-def parse_json(text: str, path: str | Path, frame: int | None = None) -> Any:
-    """``text`` as JSON, or KeypointFormatError naming the file (and frame) and the fault."""
+def json_fault(text: str) -> tuple[Any, str | None]:
+    """(the document, None), or (None, what is wrong with ``text`` as JSON)."""
     try:
-        return json.loads(text)
+        return json.loads(text), None
     except json.JSONDecodeError as exc:
         where = f"line {exc.lineno}, " if exc.lineno > 1 else ""
-        reason = f"{exc.msg} at {where}column {exc.colno}"
+        return None, f"not a JSON document ({exc.msg} at {where}column {exc.colno})"
     except RecursionError:
-        reason = "nested too deeply"
+        return None, "not a JSON document (nested too deeply)"
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
-        reason = str(exc).split(";")[0]
-    raise KeypointFormatError(f"not a JSON document ({reason})", path=path, frame=frame)
+        return None, f"not a JSON document ({str(exc).split(';')[0]})"
+
+
+def read_text(path: Path, frame: int | None = None) -> str:
+    """A keypoint file's UTF-8 text (a byte-order mark, as Windows editors write, dropped);
+    KeypointFormatError when it is not UTF-8."""
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise KeypointFormatError(
+            f"not UTF-8 text ({exc.reason} at byte {exc.start}): keypoint files are UTF-8",
+            path=path,
+            frame=frame,
+        ) from None
+
+
+def parse_json(text: str, path: str | Path, frame: int | None = None) -> Any:
+    """``text`` as JSON, or KeypointFormatError naming the file (and frame) and the fault."""
+    doc, fault = json_fault(text)
+    if fault is not None:
+        raise KeypointFormatError(fault, path=path, frame=frame)
+    return doc
 
 
 class KeypointFormatError(MotionFormatError):

@@ -28,7 +28,7 @@ import numpy as np
 from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS, Coco
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
 from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
-from robot_retarget.sources.keypoints.errors import KeypointFormatError, parse_json
+from robot_retarget.sources.keypoints.errors import KeypointFormatError, json_fault, read_text
 from robot_retarget.sources.keypoints.frames import Person, PersonFrames
 
 NUM_LANDMARKS = 33
@@ -87,15 +87,13 @@ def read_mediapipe_json(
     path: Path, *, fps: float | None = None, min_confidence: float = DEFAULT_MIN_CONFIDENCE
 ) -> KeypointSequence:
     """A MediaPipe landmark JSON (see the module docstring) → the followed person's sequence."""
-    try:
-        doc = parse_json(path.read_text(encoding="utf-8"), path)
-    except (UnicodeDecodeError, KeypointFormatError) as exc:
-        reason = exc.reason if isinstance(exc, UnicodeDecodeError) else str(exc).split(": ", 1)[1]
+    doc, fault = json_fault(read_text(path))
+    if fault is not None:
         raise KeypointFormatError(
-            f"{reason}; a .json is read as MediaPipe landmarks, and COCO-17 JSON lines (one "
+            f"{fault}; a .json is read as MediaPipe landmarks, and COCO-17 JSON lines (one "
             "frame per line) are read from a .jsonl file",
             path=path,
-        ) from None
+        )
     if not (isinstance(doc, dict) and "frames" in doc):
         raise KeypointFormatError(
             "expected MediaPipe landmarks: an object with 'image_width', 'image_height' and "

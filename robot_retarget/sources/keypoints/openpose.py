@@ -18,7 +18,7 @@ import numpy as np
 from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS, Coco
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
-from robot_retarget.sources.keypoints.errors import KeypointFormatError, parse_json
+from robot_retarget.sources.keypoints.errors import KeypointFormatError, parse_json, read_text
 from robot_retarget.sources.keypoints.frames import PersonFrames
 
 _BODY_25 = {
@@ -59,7 +59,7 @@ def is_openpose_folder(folder: Path) -> bool:
     if not files:
         return False
     try:
-        doc = json.loads(files[0].read_text(encoding="utf-8"))
+        doc = json.loads(files[0].read_text(encoding="utf-8-sig"))
     except (OSError, UnicodeDecodeError, ValueError, RecursionError):
         return True  # claimed by its shape; the reader reports the broken file
     return isinstance(doc, dict) and "people" in doc
@@ -116,12 +116,6 @@ def read_openpose_folder(
         raise KeypointFormatError("no .json frame files in this folder", path=folder)
     frames = PersonFrames()
     for i, path in enumerate(files):
-        try:
-            text = path.read_text(encoding="utf-8")
-        except UnicodeDecodeError as exc:
-            raise KeypointFormatError(
-                f"not UTF-8 text ({exc.reason})", path=path, frame=i
-            ) from None
-        doc = parse_json(text, path, i)
+        doc = parse_json(read_text(path, i), path, i)
         frames.add(parse_openpose_people(doc, path, i, min_confidence))
     return frames.sequence(fps, source=str(folder))
