@@ -6,8 +6,11 @@ file's frame period as the control period. The file starts at the clip's first f
 to its optimum (no catching up from the robot's init pose): the trajectory a stream joins at
 the end of its ramp. We do not use Retargeter.solve_clip here (windows
 solved jointly are 15–30 % smoother, see robot_retarget.optimize) so that a converted file and
-a live stream of the same clip at the same rate give the same joint angles; every frame in the
-file is checked against the joint limits and the velocity limits (from its first frame).
+a live stream of the same clip at the same rate give the same joint angles — with each limb in
+its first frame's branch, as ``stream`` runs it (``whole_clip_branches`` False, the default
+here, ``convert --stream-branches``); ``convert`` itself chooses each limb's branch on the whole
+clip (robot_retarget.pipeline.limb_branch_choice). Every frame in the file is checked against
+the joint limits and the velocity limits (from its first frame).
 """
 
 from __future__ import annotations
