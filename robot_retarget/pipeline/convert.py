@@ -128,12 +128,16 @@ def convert_motion(
     t_start = time.perf_counter()  # the conversion's wall time includes the branch choice
     try:
         step.settle_branches = None
-        if whole_clip_branches:
-            from robot_retarget.pipeline.limb_branch_choice import choose_branches
-
-            step.settle_branches = choose_branches(m, step, dt)
-        step.reset(config.init_pose)
         n = m.num_frames
+        passes = 1  # the progress bar covers the branch choice's runs too
+        if whole_clip_branches:
+            from robot_retarget.pipeline.limb_branch_choice import STARTS, choose_branches
+
+            passes += STARTS
+            tick = None if progress is None else (lambda t: progress(t, passes * n))
+            step.settle_branches = choose_branches(m, step, dt, tick)
+        done = (passes - 1) * n
+        step.reset(config.init_pose)
         q = np.empty((n, config.num_joints))
         root_pos = np.empty((0, 3))
         root_quat = np.empty((0, 4))
@@ -149,7 +153,7 @@ def convert_motion(
             q[t] = sent.q
             trunk[t] = out.trunk_frame
             if progress is not None:
-                progress(t + 1, n)
+                progress(done + t + 1, passes * n)
     finally:
         step.settle_branches = None  # never left for the next clip (or a stream) to inherit
     wall = time.perf_counter() - t_start

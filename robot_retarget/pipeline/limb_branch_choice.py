@@ -15,6 +15,8 @@ cannot see ahead and keeps the first frame's best.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from robot_retarget.array_types import FloatArray, IntArray
@@ -41,21 +43,31 @@ def limb_segments(body: RobotBodyModel, limbs: tuple[IntArray, ...]) -> list[Int
     return out
 
 
-def run_clip(motion: HumanMotion, step: RetargetStep, dt: float) -> FloatArray:
+def run_clip(
+    motion: HumanMotion,
+    step: RetargetStep,
+    dt: float,
+    progress: Callable[[int], None] | None = None,
+) -> FloatArray:
     """Joint angles of every frame, frame by frame as convert runs them (no safety layer:
-    only the choice is made from them)."""
+    only the choice is made from them); ``progress`` gets the frames done."""
     step.reset(step.config.init_pose)
     q = np.empty((motion.num_frames, step.config.num_joints))
     for t in range(motion.num_frames):
         q[t] = step(motion.local_quats[t], motion.root_pos[t], dt, settle=t == 0).q
+        if progress is not None:
+            progress(t + 1)
     return q
 
 
 def choose_branches(
-    motion: HumanMotion, step: RetargetStep, dt: float
+    motion: HumanMotion,
+    step: RetargetStep,
+    dt: float,
+    progress: Callable[[int], None] | None = None,
 ) -> tuple[int | None, ...] | None:
     """Per limb, the first-frame start whose run follows the performer best (None: no limb
-    has a choice to make)."""
+    has a choice to make); ``progress`` gets the frames done over the :data:`STARTS` runs."""
     limbs = step.retargeter.limbs
     if not limbs or motion.num_frames < 2:
         return None
@@ -69,7 +81,10 @@ def choose_branches(
     try:
         for k in range(STARTS):
             step.settle_branches = (k,) * len(limbs)
-            angles = segment_angles(human, body.body_points(run_clip(motion, step, dt)[idx]))
+            done = k * motion.num_frames
+            tick = None if progress is None else (lambda t, done=done: progress(done + t))
+            q = run_clip(motion, step, dt, tick)
+            angles = segment_angles(human, body.body_points(q[idx]))
             for i, segs in enumerate(segments):
                 scores[k, i] = float(angles[:, segs].mean()) if segs.size else 0.0
     finally:

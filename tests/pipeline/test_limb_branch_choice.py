@@ -65,3 +65,18 @@ def test_a_failed_conversion_leaves_no_branch_choice_behind() -> None:
     with pytest.raises(RuntimeError, match="stop"):
         convert_motion(motion, step, whole_clip_branches=True, progress=fail)
     assert step.settle_branches is None
+
+
+def test_the_progress_covers_the_branch_choice() -> None:
+    from robot_retarget.motion.synthetic import demo_motion
+
+    op3 = load_robot_config("op3")
+    motion = demo_motion(fps=30.0).frames(0, 20)
+    step = RetargetStep(op3, default_model_name(), motion.skeleton)
+    calls: list[tuple[int, int]] = []
+    traj = convert_motion(
+        motion, step, whole_clip_branches=True, progress=lambda d, t: calls.append((d, t))
+    ).trajectory
+    n = traj.num_frames
+    assert calls[-1] == (4 * n, 4 * n)  # three runs to choose, then the conversion
+    assert [d for d, _ in calls] == list(range(1, 4 * n + 1))
