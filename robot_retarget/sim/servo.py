@@ -163,8 +163,8 @@ class SimServo:
         change of them: the simulated bus asks for them on every packet."""
         if self._frame is None:
             mode = self._read_mode()
-            self._frame = (mode, self._read_reversed(), self._read_homing(), (0, 0))
-            self._frame = (*self._frame[:3], self._read_position_limits(mode))
+            limits = self._read_position_limits(mode)
+            self._frame = (mode, self._read_reversed(), self._read_homing(), limits)
         return self._frame
 
     def _read_mode(self) -> str:
