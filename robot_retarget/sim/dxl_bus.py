@@ -188,7 +188,8 @@ class SimulatedBus:
         """Map IDs to servos from their ID registers (before each packet, and after a write:
         an ID may have moved)."""
         listed = list(self.servos.values())
-        members = listed + [t for t in self._twins if all(t is not m for m in listed)]
+        known = {id(m) for m in listed}
+        members = listed + [t for t in self._twins if id(t) not in known]
         on_id: dict[int, list[SimServo]] = {}
         for s in members:
             on_id.setdefault(s.servo_id, []).append(s)
