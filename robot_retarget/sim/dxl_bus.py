@@ -562,10 +562,9 @@ class SimulatedBus:
         XM430): nothing if it is the first, else a packet cut short (the client times out)."""
         if not items:
             return []
-        total = 1 + sum(length + 4 for _, _, length in items) + 2  # + the instruction's CRC
+        total = 1 + sum(length + 4 for _, _, length in items)  # the length field's value
         if total > 0xFFFF:
             raise ValueError(f"a Fast Read reply of {total} bytes does not fit one packet")
-        total -= 2
         pkt = bytearray(p.HEADER_V2 + bytes((p.BROADCAST_ID, total & 0xFF, total >> 8, 0x55)))
         crc = p.crc16(pkt)  # carried along: each part's CRC covers everything before it
         for k, (s, addr, length) in enumerate(items):
