@@ -79,7 +79,11 @@ def load_targets(retargeter: Retargeter, clip: Path, frames: int) -> tuple[ClipT
         )
     motion = load_motion(clip, max_frames=frames)
     targets = targets_from_rotations(
-        retargeter.problem, motion.skeleton, motion.local_quats, root_pos=motion.root_pos
+        retargeter.problem,
+        motion.skeleton,
+        motion.local_quats,
+        root_pos=motion.root_pos,
+        level_feet=retargeter.settings.level_feet,
     )
     if len(targets) < frames:
         targets = _pingpong(targets, frames)

@@ -24,6 +24,11 @@ Cost terms (all summed per frame; one :mod:`.terms` module each):
 - ``w_acceleration``· |(q_t − 2 q_{t−1} + q_{t−2}) / dt²|²         (rad/s²)²
 - ``w_init``        · |q_t − q_init|²                              rad²
 
+Targets: ``level_feet`` (0 … 1, default 1) is the share of each foot's roll about its own long
+axis left out of the targets (:mod:`.level_feet`): 1 keeps the soles level, 0 copies the
+performer's foot roll, which on mocap rigs is mostly the rig's (OP3 stood on the outer edges
+of its soles).
+
 Solver options: ``max_iter`` (online SQP iterations), ``step_tol_ticks`` (the online SQP stops
 once a step moves no joint by more than this share of the robot's finest servo tick),
 ``offline_max_iter``, ``window`` and ``overlap`` (offline windows), ``warm_start_step`` (where
@@ -70,7 +75,14 @@ _SCALARS: dict[str, tuple[float, float, str]] = {
         0.0,
         "online start point: the last solution moved on by this share of the last step",
     ),
+    "level_feet": (
+        1.0,
+        0.0,
+        "share (0 … 1) of each foot's roll about its long axis left out of the targets "
+        "(1: soles level; 0: the performer's foot roll)",
+    ),
 }
+_SHARES = ("level_feet",)  # at most 1
 _INTEGERS = ("window", "overlap", "max_iter", "offline_max_iter")
 # Per-bone values, written ``<prefix>.<CanonicalBone>`` (the bone's canonical start joint).
 _PER_BONE: dict[str, str] = {
@@ -122,6 +134,10 @@ class RetargetSettings:
     # 1.98 to 1.36 (OP3) and 4.33 to 3.54 (Poppy), the median solve by 13 % and 21 %;
     # eval-robot on 02 05 13: OP3 unchanged, Poppy 5.64° / 0.144 → 5.54° / 0.141.
     warm_start_step: float = 1.0
+    # The feet turned level about their long axis (robot_retarget.optimize.level_feet): the
+    # mocap rig's foot roll had OP3 stand on its soles' outer edges (06 08 12, stance: median
+    # 24.5° → 7.0° off flat; foot-box corners > 1 cm under the floor in 16.5 % → 0 % of frames).
+    level_feet: float = 1.0
 
     @classmethod
     def from_mapping(
@@ -162,6 +178,14 @@ class RetargetSettings:
                 key="retarget.overlap",
                 allowed=f"0 … {window - 1}",
             )
+        for key in _SHARES:
+            if scalars[key] > 1.0:
+                raise ConfigError(
+                    f"must be a share between 0 and 1, got {scalars[key]}",
+                    path=path,
+                    key=f"retarget.{key}",
+                    allowed="0 … 1",
+                )
         for key in _INTEGERS:
             if scalars[key] != int(scalars[key]):
                 raise ConfigError(

@@ -29,6 +29,7 @@ from robot_retarget.errors import SolveError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.geometry.quaternion_tables import product_table, rotation_table
 from robot_retarget.optimize.formulation import RobotProblem
+from robot_retarget.optimize.level_feet import FootLevel, level_globals, rest_axes_of
 from robot_retarget.optimize.targets_graph import guard_ok, targets_function
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
@@ -151,12 +152,13 @@ def targets_from_rotations(
     root_pos: npt.ArrayLike | None = None,
     end_effectors: bool = False,
     scale: float = 1.0,
+    level_feet: float = 0.0,
 ) -> ClipTargets:
     """Targets from canonical local rotations (T, 22, 4) on ``skeleton`` (canonical joints).
 
     ``skeleton`` should have the robot's proportions (the network's target skeleton);
-    ``scale`` further scales end-effector offsets (m per skeleton unit). Runs the skeleton's
-    FK, then :func:`targets_from_globals`.
+    ``scale`` further scales end-effector offsets (m per skeleton unit); ``level_feet`` as
+    :func:`targets_from_globals`. Runs the skeleton's FK, then :func:`targets_from_globals`.
     """
     if skeleton.names != CANONICAL_JOINTS:
         raise SolveError(
@@ -168,7 +170,9 @@ def targets_from_rotations(
         raise SolveError(f"local rotations must be (T, 22, 4), got shape {q.shape}")
     q = check_array("local rotations", q, (q.shape[0], len(CANONICAL_JOINTS), 4))
     pos, glob = forward_kinematics(skeleton, q, root_pos)
-    return targets_from_globals(problem, pos, glob, end_effectors=end_effectors, scale=scale)
+    return targets_from_globals(
+        problem, pos, glob, end_effectors=end_effectors, scale=scale, level_feet=level_feet
+    )
 
 
 def targets_from_globals(
@@ -178,10 +182,13 @@ def targets_from_globals(
     *,
     end_effectors: bool = False,
     scale: float = 1.0,
+    level_feet: float = 0.0,
 ) -> ClipTargets:
     """Targets from canonical global positions (T, 22, 3) and rotations (T, 22, 4).
 
     For sources that already have them (a motion's ``positions()`` / ``global_quats()``).
+    ``level_feet``: the share of each foot's roll about its long axis left out
+    (:mod:`.level_feet`; the robot's ``retarget.level_feet``; 0: the rotations as given).
     """
     pos = np.asarray(positions, dtype=np.float64)
     if pos.ndim != 3:
@@ -189,6 +196,8 @@ def targets_from_globals(
     frames = pos.shape[0]
     pos = check_array("positions", pos, (frames, len(CANONICAL_JOINTS), 3))
     glob = check_array("global rotations", global_quats, (frames, len(CANONICAL_JOINTS), 4))
+    if level_feet > 0.0:
+        glob = level_globals(FootLevel.of_axes(rest_axes_of(pos, glob), level_feet), glob)
     body = trunk_frames_of_positions(pos)  # (T, 3, 3) canonical
     # M_t = F · B_tᵀ: canonical → robot root frame, per frame.
     m = np.einsum("ij,tkj->tik", problem.body_to_root, body)
@@ -228,6 +237,7 @@ class FrameTargetBuilder:
         *,
         end_effectors: bool = False,
         scale: float = 1.0,
+        level_feet: float = 0.0,
     ) -> None:
         if skeleton.names != CANONICAL_JOINTS:
             raise SolveError(
@@ -283,6 +293,7 @@ class FrameTargetBuilder:
         self._mul = product_table()
         self._rot = rotation_table()
         self._eye = np.eye(3).ravel()
+        self._level = FootLevel.of_skeleton(skeleton.offsets, level_feet) if level_feet else None
         # The same arithmetic as one casadi call (targets_graph); __call__ takes the numpy
         # path below only for frames the graph's guard flags (degenerate vectors).
         self._graph = CompiledFunction(
@@ -294,6 +305,8 @@ class FrameTargetBuilder:
                 nb,
                 self._body_to_root,
                 self._hip_center if self._ee else None,
+                level_feet,
+                None if self._level is None else self._level.rest_axes,
             )
         )
         self._q_in = self._graph.args[0].reshape(j, 4)
@@ -333,6 +346,8 @@ class FrameTargetBuilder:
         mul = self._mul
         for anc in self._jumps:
             g = (g[anc][:, :, None] * g[:, None, :]).reshape(-1, 16) @ mul
+        if self._level is not None:
+            g[:-1] = level_globals(self._level, g[:-1])
         sel = g[self._rot_index]
         mats = (sel[:, :, None] * sel[:, None, :]).reshape(-1, 16) @ self._rot + self._eye
         rotated = (mats.reshape(-1, 3, 3) @ self._vectors)[:, :, 0]

@@ -21,6 +21,7 @@ import casadi as ca
 from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import memoized_graph
 from robot_retarget.geometry import symbolic_quaternion as sq
+from robot_retarget.optimize.level_feet import FootLevel, level_twists_sx
 
 GUARD_EPS = 1e-9
 
@@ -58,13 +59,16 @@ def targets_function(
     num_bones: int,
     body_to_root: FloatArray,
     hip_center: FloatArray | None,
+    level_feet: float = 0.0,
+    foot_axes: FloatArray | None = None,
 ) -> ca.Function:
     """``q (J·4) → (directions B·3, normals B·3, ee E·3, trunk 3·3, guard 3)``, row-major.
 
     ``rot_index`` names the joint whose global rotation turns each row of ``vectors`` (the
     bone offsets of joints 1…J−1, then the rest normals); ``sums`` (B + 2 + E, J − 1) adds
     rotated offsets up into bone vectors, the hip axis, the trunk and the end effectors
-    (relative to the hips); ``hip_center`` None: no end effectors.
+    (relative to the hips); ``hip_center`` None: no end effectors. ``level_feet`` > 0 with the
+    feet's rest axes ``foot_axes`` (2, 3): the feet turned level (:mod:`.level_feet`).
     """
     j = len(parents)
     q = ca.SX.sym("q", 4 * j)
@@ -72,6 +76,12 @@ def targets_function(
     for n, p in enumerate(parents):
         qn = sq.quat_at(q, n)
         glob.append(qn if p < 0 else sq.qmul(glob[p], qn))
+    if level_feet > 0.0 and foot_axes is not None:
+        level = FootLevel.of_axes(foot_axes, level_feet)
+        twists = level_twists_sx(level, [glob[f] for f in level.feet])
+        for twist, joints in zip(twists, level.turned, strict=True):
+            for n in joints:
+                glob[n] = sq.qmul(twist, glob[n])
     rotated: list[sq.Vec] = []
     for row, idx in enumerate(rot_index):
         v = vectors[row]

@@ -83,7 +83,11 @@ class RetargetStep:
         self.robot_skeleton = robot_canonical_skeleton(config)
         self.retargeter = retargeter if retargeter is not None else Retargeter(config)
         # Per-skeleton constants of the targets, computed once (the per-frame path).
-        self.target_builder = FrameTargetBuilder(self.retargeter.problem, self.robot_skeleton)
+        self.target_builder = FrameTargetBuilder(
+            self.retargeter.problem,
+            self.robot_skeleton,
+            level_feet=self.retargeter.settings.level_feet,
+        )
         # Targets, parameters and velocity box of a frame in one compiled call; False: the
         # numpy targets and writers (the benchmarks' reference).
         self.live = LiveFrameSolver(self.retargeter, self.target_builder) if frame_program else None

@@ -239,7 +239,12 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
         rate = float(config.control_rate_hz)
         m = motion if abs(motion.fps - rate) < 1e-9 else motion.resample(rate)
         dt = 1.0 / rate
-        targets = targets_from_globals(retargeter.problem, m.positions(), m.global_quats())
+        targets = targets_from_globals(
+            retargeter.problem,
+            m.positions(),
+            m.global_quats(),
+            level_feet=retargeter.settings.level_feet,
+        )
         safety = SafetyLayer(config, RecordingBackend(config))
         safety.connect()
         retargeter.reset(config.init_pose)
