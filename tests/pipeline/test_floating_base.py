@@ -209,3 +209,35 @@ def test_bad_input_is_refused() -> None:
     )  # fmt: skip
     with pytest.raises(ConfigError, match="no foot bones"):
         foot_points(footless)
+
+
+@pytest.mark.parametrize("robot", ["op3", "poppy_humanoid"])
+def test_the_base_walks_on_steadily_where_the_performer_does(
+    shared_data_dir: Path, robot: str
+) -> None:
+    """CMU 02_01 walks straight ahead. OP3's swing foot skims the floor; the base must not be
+    pinned to it (it went 0.32 m backwards for 0.76 m forward), and the feet the performer
+    stands on stay put."""
+    config = load_robot_config(robot)
+    motion = load_motion(shared_data_dir / "mocap" / "02" / "02_01.bvh")
+    traj = convert_motion(motion, RetargetStep(config, load_model("default"), motion.skeleton))
+    rate = config.control_rate_hz
+    human = motion.resample(rate)
+    base = floating_base(config, human, traj.trajectory.q)
+    xy = base.root_pos[:, :2]
+    ahead = (xy[-1] - xy[0]) / np.linalg.norm(xy[-1] - xy[0])
+    along = np.diff(xy, axis=0) @ ahead
+    assert -along[along < 0].sum() < 0.02 * along[along > 0].sum()  # OP3 was 42 %
+    assert along.min() * rate > -0.3  # m/s; OP3 was −1.27
+    # Feet the performer stands on, on the floor in consecutive frames, are held.
+    heights = human_foot_heights_m(human.positions())
+    sides = [0 if name.startswith("l") else 1 for name in base.foot_frames]
+    planted = np.stack([heights[:, [0, 2]].min(1), heights[:, [1, 3]].min(1)], 1) < 0.03
+
+    def held_speed(feet: np.ndarray) -> float:
+        held = (feet[:, :, 2] <= 0.01) & planted[:, sides]
+        both = held[1:] & held[:-1]
+        return float((np.linalg.norm(np.diff(feet[:, :, :2], axis=0), axis=-1)[both]).mean())
+
+    free = floating_base(config, human, traj.trajectory.q, pin_feet=False)
+    assert held_speed(base.feet) < 0.6 * held_speed(free.feet)  # OP3: 0.064 vs 0.123 m/s
