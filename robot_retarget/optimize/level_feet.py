@@ -12,15 +12,19 @@ canonical left, made perpendicular to the rest axis) is horizontal: ``share`` of
 angle (``retarget.level_feet``, 1 by default). Its long axis — where the toes point, the foot
 bone's direction target — does not move, only the roll about it; the joints below the foot
 (the toes) turn with it. A foot within 17° of vertical (on tiptoe, a kick straight up) has no
-"level": there nothing is turned, and between 17° and 44° from vertical the turn fades in.
+"level": there nothing is turned, and between 17° and 44° from vertical the turn fades in. Nor
+is a roll of more than 45° the rig's: it fades out by 90° (a foot pitched back past vertical,
+in a kneel or an arabesque, is "rolled" 180° by construction), so the turn never jumps.
 
-Three implementations of the same numbers: :func:`level_globals` (numpy, any leading shape:
-whole clips and the live path's degenerate frames) and :func:`level_twists_sx` (the live
-path's compiled targets graph); tested against each other.
+Two implementations of the same numbers: :func:`level_twists` (numpy, any leading shape:
+whole clips and the live path's degenerate frames, through :func:`level_globals`) and
+:func:`level_twists_sx` (the live path's compiled targets graph); tested against each other.
+Quaternions need not be of unit length (both normalise them first).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -31,12 +35,20 @@ import numpy.typing as npt
 from robot_retarget.array_types import FloatArray
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.geometry import symbolic_quaternion as sq
-from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.canonical import (
+    CANONICAL_JOINTS,
+    CANONICAL_PARENTS,
+    Joint,
+    default_canonical_skeleton,
+)
 
 # |up × long axis| (the sine of the foot's angle from vertical): below FADE_START nothing is
 # turned, above FADE_FULL the whole ``share``; between, linearly.
 FADE_START = 0.3  # 17.5° from vertical
 FADE_FULL = 0.7  # 44.4° from vertical
+# |roll| up to ROLL_FULL is turned in full, from ROLL_NONE on not at all; between, linearly.
+ROLL_FULL = math.radians(45.0)
+ROLL_NONE = math.radians(90.0)
 _UP = np.array([0.0, 1.0, 0.0])  # canonical up (Y)
 _LEFT = np.array([1.0, 0.0, 0.0])  # canonical left (X): a foot's lateral axis at rest
 FEET = ((Joint.LeftFoot, Joint.LeftToeBase), (Joint.RightFoot, Joint.RightToeBase))
@@ -66,12 +78,19 @@ class FootLevel:
     def feet(self) -> tuple[int, ...]:
         return tuple(int(f) for f, _ in FEET)
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "share", check_share(self.share))
+
     @classmethod
     def of_skeleton(cls, offsets: npt.ArrayLike, share: float) -> FootLevel:
         """From a canonical skeleton's joint offsets (22, 3): each foot's rest axis is its toe
-        joint's offset."""
+        joint's offset (a toe joint on its foot: the reference skeleton's direction)."""
         off = np.asarray(offsets, dtype=np.float64)
-        axes = [off[toe] / np.linalg.norm(off[toe]) for _, toe in FEET]
+        reference = default_canonical_skeleton().offsets
+        axes = []
+        for _, toe in FEET:
+            v = off[toe] if np.linalg.norm(off[toe]) > 1e-9 else reference[toe]
+            axes.append(v / np.linalg.norm(v))
         return cls.of_axes(np.array(axes), share)
 
     @classmethod
@@ -81,11 +100,36 @@ class FootLevel:
         return cls(share, tuple(_descendants(int(f)) for f, _ in FEET), axes)
 
 
-def _fade(sine: FloatArray | ca.SX, share: float) -> FloatArray | ca.SX:
-    t = (sine - FADE_START) / (FADE_FULL - FADE_START)
-    if isinstance(t, ca.SX):
-        return share * ca.fmin(ca.fmax(t, 0.0), 1.0)
-    return share * np.clip(t, 0.0, 1.0)
+def check_share(share: float) -> float:
+    """``share`` as a float in [0, 1], else ValueError (``retarget.level_feet``'s range)."""
+    value = float(share)
+    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+        raise ValueError(
+            f"level_feet must be a share 0 … 1 (1: soles level, 0: the performer's foot roll), "
+            f"got {share!r}"
+        )
+    return value
+
+
+def _fade(sine: FloatArray, roll: FloatArray, share: float) -> FloatArray:
+    """The share of ``roll`` turned: ``share``, faded near vertical and for large rolls."""
+    upright = np.clip((sine - FADE_START) / (FADE_FULL - FADE_START), 0.0, 1.0)
+    small = np.clip((ROLL_NONE - np.abs(roll)) / (ROLL_NONE - ROLL_FULL), 0.0, 1.0)
+    return np.asarray(share * upright * small, dtype=np.float64)
+
+
+def _fade_sx(sine: ca.SX, roll: ca.SX, share: float) -> ca.SX:
+    upright = ca.fmin(ca.fmax((sine - FADE_START) / (FADE_FULL - FADE_START), 0.0), 1.0)
+    small = ca.fmin(ca.fmax((ROLL_NONE - ca.fabs(roll)) / (ROLL_NONE - ROLL_FULL), 0.0), 1.0)
+    return share * upright * small
+
+
+def _unit_or_identity(q: FloatArray) -> FloatArray:
+    """``q / |q|``, the identity where |q| ≤ 1e-12 (as ``symbolic_quaternion.unit_or_identity``):
+    a degenerate frame goes on to the targets' own fallbacks instead of raising here."""
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    ok = n > 1e-12
+    return np.where(ok, q / np.where(ok, n, 1.0), quat.identity(q.shape[:-1]))
 
 
 def _rest_lateral(rest_axis: FloatArray) -> FloatArray:
@@ -98,7 +142,7 @@ def level_twists(foot_globals: npt.ArrayLike, rest_axes: npt.ArrayLike, share: f
     """Turns (…, 4) about each foot's long axis that level it: ``turn ⊗ G`` is the leveled
     global rotation of a foot whose global rotation is ``G`` (…, 4) and rest long axis
     ``rest_axes`` (…, 3) (unit, in the foot's frame)."""
-    g = np.asarray(foot_globals, dtype=np.float64)
+    g = _unit_or_identity(np.asarray(foot_globals, dtype=np.float64))
     r = np.broadcast_to(np.asarray(rest_axes, dtype=np.float64), (*g.shape[:-1], 3))
     axis = quat.rotate(g, r)  # the long axis in the world
     lateral = quat.rotate(g, _rest_lateral(r))  # ⟂ axis
@@ -109,7 +153,7 @@ def level_twists(foot_globals: npt.ArrayLike, rest_axes: npt.ArrayLike, share: f
     roll = np.arctan2(
         np.sum(np.cross(lateral, level) * axis, axis=-1), np.sum(lateral * level, axis=-1)
     )
-    half = 0.5 * _fade(sine, share) * roll
+    half = 0.5 * _fade(sine, roll, share) * roll
     return np.concatenate([np.cos(half)[..., None], np.sin(half)[..., None] * axis], axis=-1)
 
 
@@ -127,7 +171,7 @@ def rest_axes_of(positions: npt.ArrayLike, global_quats: npt.ArrayLike) -> Float
     rotations (…, 22, 4): the heel → toe line as the motion has it (for motions without their
     skeleton at hand, e.g. ``targets_from_globals``)."""
     p = np.asarray(positions, dtype=np.float64)
-    g = np.asarray(global_quats, dtype=np.float64)
+    g = _unit_or_identity(np.asarray(global_quats, dtype=np.float64))
     feet = [int(f) for f, _ in FEET]
     toes = [int(t) for _, t in FEET]
     world = p[..., toes, :] - p[..., feet, :]
@@ -139,14 +183,14 @@ def level_twists_sx(level: FootLevel, foot_globals: Sequence[sq.Quat]) -> list[s
     """:func:`level_twists` in SX, one turn per foot (for the compiled targets graph)."""
     out: list[sq.Quat] = []
     for g, r in zip(foot_globals, level.rest_axes, strict=True):
-        m = sq.matrix(g)
+        m = sq.matrix(sq.unit_or_identity(g))
         axis = sq.rotate(m, tuple(ca.SX(float(c)) for c in r))
         lateral = sq.rotate(m, tuple(ca.SX(float(c)) for c in _rest_lateral(r)))
         raw = sq.cross(tuple(ca.SX(c) for c in _UP), axis)
         sine = sq.norm(raw)
         level_axis = sq.scale(1.0 / ca.fmax(sine, 1e-12), raw)
         roll = ca.atan2(sq.dot(sq.cross(lateral, level_axis), axis), sq.dot(lateral, level_axis))
-        half = 0.5 * _fade(sine, level.share) * roll
+        half = 0.5 * _fade_sx(sine, roll, level.share) * roll
         s_half = ca.sin(half)
         out.append((ca.cos(half), s_half * axis[0], s_half * axis[1], s_half * axis[2]))
     return out

@@ -160,6 +160,8 @@ class RetargetSettings:
             prefix, dot, bone = key.partition(".")
             if dot and prefix in _PER_BONE and bone in bone_names:
                 per_bone[_PER_BONE[prefix]][bone] = _number(key, raw, 0.0, path, allowed)
+            elif key in _SHARES:
+                scalars[key] = _share(key, raw, path)
             elif key in _SCALARS:
                 scalars[key] = _number(key, raw, _SCALARS[key][1], path, allowed)
             else:
@@ -178,14 +180,6 @@ class RetargetSettings:
                 key="retarget.overlap",
                 allowed=f"0 … {window - 1}",
             )
-        for key in _SHARES:
-            if scalars[key] > 1.0:
-                raise ConfigError(
-                    f"must be a share between 0 and 1, got {scalars[key]}",
-                    path=path,
-                    key=f"retarget.{key}",
-                    allowed="0 … 1",
-                )
         for key in _INTEGERS:
             if scalars[key] != int(scalars[key]):
                 raise ConfigError(
@@ -208,6 +202,23 @@ class RetargetSettings:
     def orientation_weight(self, bone: str) -> float:
         """Orientation (roll) weight of one bone (its canonical start joint)."""
         return self.orientation_overrides.get(bone, self.w_orientation)
+
+
+def _share(key: str, raw: object, path: str | None) -> float:
+    """A share 0 … 1 (``level_feet``, the only one): true/false gets the number to write."""
+    allowed = "a number 0 … 1 (1: soles level, 0: the performer's foot roll)"
+    if isinstance(raw, bool):
+        raise ConfigError(
+            f"must be a number, got {raw!r}: write {int(raw)} ({'on' if raw else 'off'})",
+            path=path, key=f"retarget.{key}", allowed=allowed,
+        )  # fmt: skip
+    value = float(raw) if isinstance(raw, (int, float)) else math.nan
+    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+        raise ConfigError(
+            f"must be a share 0 … 1, got {raw!r}", path=path, key=f"retarget.{key}",
+            allowed=allowed,
+        )  # fmt: skip
+    return value
 
 
 def _number(key: str, raw: object, lower: float, path: str | None, allowed: list[str]) -> float:

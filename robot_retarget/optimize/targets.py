@@ -29,7 +29,12 @@ from robot_retarget.errors import SolveError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.geometry.quaternion_tables import product_table, rotation_table
 from robot_retarget.optimize.formulation import RobotProblem
-from robot_retarget.optimize.level_feet import FootLevel, level_globals, rest_axes_of
+from robot_retarget.optimize.level_feet import (
+    FootLevel,
+    check_share,
+    level_globals,
+    rest_axes_of,
+)
 from robot_retarget.optimize.targets_graph import guard_ok, targets_function
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, Joint
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
@@ -196,7 +201,7 @@ def targets_from_globals(
     frames = pos.shape[0]
     pos = check_array("positions", pos, (frames, len(CANONICAL_JOINTS), 3))
     glob = check_array("global rotations", global_quats, (frames, len(CANONICAL_JOINTS), 4))
-    if level_feet > 0.0:
+    if check_share(level_feet) > 0.0:
         glob = level_globals(FootLevel.of_axes(rest_axes_of(pos, glob), level_feet), glob)
     body = trunk_frames_of_positions(pos)  # (T, 3, 3) canonical
     # M_t = F · B_tᵀ: canonical → robot root frame, per frame.
@@ -293,7 +298,8 @@ class FrameTargetBuilder:
         self._mul = product_table()
         self._rot = rotation_table()
         self._eye = np.eye(3).ravel()
-        self._level = FootLevel.of_skeleton(skeleton.offsets, level_feet) if level_feet else None
+        share = check_share(level_feet)
+        self._level = FootLevel.of_skeleton(skeleton.offsets, share) if share > 0.0 else None
         # The same arithmetic as one casadi call (targets_graph); __call__ takes the numpy
         # path below only for frames the graph's guard flags (degenerate vectors).
         self._graph = CompiledFunction(
@@ -305,7 +311,7 @@ class FrameTargetBuilder:
                 nb,
                 self._body_to_root,
                 self._hip_center if self._ee else None,
-                level_feet,
+                share,
                 None if self._level is None else self._level.rest_axes,
             )
         )

@@ -83,7 +83,11 @@ def test_fast_paths_give_the_reference_commands(
     for t in range(30):
         quats, root = online.step(demo.local_quats[t], demo.root_pos[t])
         targets = targets_from_rotations(
-            retargeter.problem, step.robot_skeleton, quats[None], root_pos=root[None]
+            retargeter.problem,
+            step.robot_skeleton,
+            quats[None],
+            root_pos=root[None],
+            level_feet=retargeter.settings.level_feet,
         ).frame(0)
         want.append((retargeter.solve(targets, dt).q, root, quats[0]))
     step.reset()
