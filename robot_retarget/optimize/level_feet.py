@@ -5,7 +5,7 @@ of it, not what the foot does: in stance a performer's sole lies flat on the flo
 CMU clips the foot joint's lateral axis stands 17–22° out of the horizontal there (02_01,
 06_10; outwards on both feet), and OP3, whose ankle roll copies it, stood on the outer edges of
 its soles (median 24.5° off flat in stance on 06, 08 and 12; in 51 % of those frames a corner
-of the manufacturer's foot boxes was more than 1 cm under the floor; 7.0° and 0.3 % level).
+of the manufacturer's foot boxes was more than 1 cm under the floor; 7.2° and 0.6 % level).
 
 So each foot's global rotation is turned about its own long axis until its lateral axis (the
 canonical left, made perpendicular to the rest axis) is horizontal: ``share`` of that roll

@@ -136,7 +136,7 @@ class RetargetSettings:
     warm_start_step: float = 1.0
     # The feet turned level about their long axis (robot_retarget.optimize.level_feet): the
     # mocap rig's foot roll had OP3 stand on its soles' outer edges (06 08 12, stance: median
-    # 24.5° → 7.0° off flat; a foot-box corner > 1 cm under the floor in 51 % → 0.3 % of frames).
+    # 24.5° → 7.2° off flat; a foot-box corner > 1 cm under the floor in 51 % → 0.6 % of frames).
     level_feet: float = 1.0
 
     @classmethod

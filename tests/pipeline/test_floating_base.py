@@ -240,4 +240,4 @@ def test_the_base_walks_on_steadily_where_the_performer_does(
         return float((np.linalg.norm(np.diff(feet[:, :, :2], axis=0), axis=-1)[both]).mean())
 
     free = floating_base(config, human, traj.trajectory.q, pin_feet=False)
-    assert held_speed(base.feet) < 0.6 * held_speed(free.feet)  # OP3: 0.064 vs 0.123 m/s
+    assert held_speed(base.feet) < 0.7 * held_speed(free.feet)  # OP3: 0.064 vs 0.123 m/s
