@@ -249,13 +249,32 @@ def trajectory_feet(
     return np.asarray(rel + np.asarray(root_pos, dtype=np.float64)[:, None, :])
 
 
-def foot_skate_m_s(feet: npt.ArrayLike, fps: float, contact_m: float = CONTACT_M) -> float:
+def planted_feet(config: RobotConfig, motion: HumanMotion) -> npt.NDArray[np.bool_]:
+    """(T, F): the performer stands on the side of each of the robot's foot points
+    (:func:`foot_points`), as the pinning decides it (a foot joint near its standing height and
+    slow)."""
+    human = motion.positions()
+    sides = _frame_sides(config, foot_points(config))
+    return _human_planted(human, human_foot_heights_m(human), motion.fps, sides)
+
+
+def foot_skate_m_s(
+    feet: npt.ArrayLike,
+    fps: float,
+    contact_m: float = CONTACT_M,
+    *,
+    planted: npt.ArrayLike | None = None,
+) -> float:
     """Mean horizontal speed (m/s) of robot foot points that stay on the ground (z within
-    ``contact_m``) from one frame to the next; 0 when no foot is ever down twice in a row."""
+    ``contact_m``) from one frame to the next; 0 when no foot is ever down twice in a row.
+    ``planted`` (T, F): count only points whose side the performer stands on in both frames
+    (:func:`planted_feet`): a stance foot sliding, not a swing foot skimming the floor."""
     f = np.asarray(feet, dtype=np.float64)  # (T, F, 3) world
     if len(f) < 2:
         return 0.0
     down = f[:, :, 2] <= contact_m
+    if planted is not None:
+        down &= np.asarray(planted, dtype=bool)
     both = down[1:] & down[:-1]
     if not both.any():
         return 0.0

@@ -241,3 +241,16 @@ def test_the_base_walks_on_steadily_where_the_performer_does(
 
     free = floating_base(config, human, traj.trajectory.q, pin_feet=False)
     assert held_speed(base.feet) < 0.7 * held_speed(free.feet)  # OP3: 0.064 vs 0.123 m/s
+
+
+def test_skate_under_planted_feet_counts_only_the_feet_the_performer_stands_on() -> None:
+    # Two feet on the floor: one still, one moving 1 cm per frame (a swing foot skimming it).
+    t = np.arange(10, dtype=float)
+    feet = np.zeros((10, 2, 3))
+    feet[:, 1, 0] = 0.01 * t
+    planted = np.zeros((10, 2), dtype=bool)
+    planted[:, 0] = True
+    assert foot_skate_m_s(feet, 100.0) == pytest.approx(0.5)  # (0 + 1 m/s) / 2
+    assert foot_skate_m_s(feet, 100.0, planted=planted) == 0.0
+    planted[:, 1] = True
+    assert foot_skate_m_s(feet, 100.0, planted=planted) == pytest.approx(0.5)

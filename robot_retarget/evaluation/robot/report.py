@@ -53,6 +53,10 @@ def markdown_table(report: EvalRobotReport) -> str:
         ("max joint speed (rad/s)", [_fmt(s[m].max_speed_rad_s) for m in METHODS]),
         ("**jerk (rad/s³)**", [_fmt(s[m].jerk_rad_s3, 0) for m in METHODS]),
         ("robot foot skate (m/s)", [_fmt(s[m].foot_skate_m_s, 3) for m in METHODS]),
+        (
+            "… under the performer's planted feet (m/s)",
+            [_fmt(s[m].planted_skate_m_s, 3) for m in METHODS],
+        ),
         ("solver fallbacks", [_fmt(s[m].fallbacks) for m in METHODS]),
         ("compute per frame (ms)", [_fmt(s[m].ms_per_frame, 3) for m in METHODS]),
     ]
@@ -129,6 +133,7 @@ def _summary_dict(s: MethodSummary) -> dict[str, Any]:
         "fallbacks": s.fallbacks,
         "ms_per_frame": s.ms_per_frame,
         "foot_skate_m_s": s.foot_skate_m_s,
+        "planted_skate_m_s": s.planted_skate_m_s,
     }
 
 
@@ -145,6 +150,7 @@ def report_dict(report: EvalRobotReport) -> dict[str, Any]:
                     ),
                     "ee_mean": float(c.methods[m].ee.mean()),
                     "foot_skate_m_s": c.methods[m].foot_skate_m_s,
+                    "planted_skate_m_s": c.methods[m].planted_skate_m_s,
                 }
                 for m in METHODS
             },

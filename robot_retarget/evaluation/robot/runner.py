@@ -72,6 +72,7 @@ from robot_retarget.pipeline.floating_base import (
     base_rotations,
     floating_base,
     foot_skate_m_s,
+    planted_feet,
     trajectory_feet,
 )
 from robot_retarget.robot.config import RobotConfig
@@ -125,7 +126,8 @@ class MethodClip:
     """One method on one clip. ``angles`` (N, 9) rad and ``ee`` (N, 4) on evaluation frames;
     ``stats`` None for the kinematic limit (per-frame poses, not a trajectory);
     ``foot_skate_m_s``: how fast the robot's feet slide on the ground on its floating base
-    (every frame; None for the limit)."""
+    (every frame; None for the limit); ``planted_skate_m_s``: the same for the feet the
+    performer stands on only (a swing foot skimming the floor left out)."""
 
     angles: FloatArray
     ee: FloatArray
@@ -133,6 +135,7 @@ class MethodClip:
     fallbacks: int
     ms_per_frame: float
     foot_skate_m_s: float | None = None
+    planted_skate_m_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -162,6 +165,7 @@ class MethodSummary:
     fallbacks: int | None
     ms_per_frame: float
     foot_skate_m_s: float | None = None
+    planted_skate_m_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -343,13 +347,21 @@ class RobotEvaluator:
         }
         # Feet on the ground, every frame: the pipeline on its trajectory's base, the
         # baselines on the base convert would give them (the performer's trunk frames).
-        skate = {
-            "pipeline": foot_skate_m_s(pipe_feet, rate),
-            "gmr": foot_skate_m_s(floating_base(self.config, human_n, gmr.q[:n]).feet, rate),
-            "baseline": foot_skate_m_s(floating_base(self.config, human_n, base.q[:n]).feet, rate),
+        feet = {
+            "pipeline": pipe_feet,
+            "gmr": floating_base(self.config, human_n, gmr.q[:n]).feet,
+            "baseline": floating_base(self.config, human_n, base.q[:n]).feet,
         }
+        planted = planted_feet(self.config, human_n)
         methods = {
-            m: dataclasses.replace(c, foot_skate_m_s=skate.get(m)) for m, c in methods.items()
+            m: dataclasses.replace(
+                c,
+                foot_skate_m_s=foot_skate_m_s(feet[m], rate),
+                planted_skate_m_s=foot_skate_m_s(feet[m], rate, planted=planted),
+            )
+            if m in feet
+            else c
+            for m, c in methods.items()
         }
         return ClipScores(name, n / rate, methods, pos[idx], qs)
 
@@ -462,6 +474,7 @@ def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
             fallbacks=sum(p.fallbacks for p in per) if has else None,
             ms_per_frame=float(sum(wi * p.ms_per_frame for wi, p in zip(w, per, strict=True))),
             foot_skate_m_s=_weighted(w, [p.foot_skate_m_s for p in per]),
+            planted_skate_m_s=_weighted(w, [p.planted_skate_m_s for p in per]),
         )
     return out
 

@@ -33,6 +33,10 @@ def test_json_and_plots(
     skate = {m: v["foot_skate_m_s"] for m, v in out["summary"].items()}
     assert skate["limit"] is None  # per-frame poses: no feet that move
     assert all(0.0 <= skate[m] < 2.0 for m in ("pipeline", "gmr", "baseline")), skate
+    # Under the performer's planted feet only: part of every foot point's sliding.
+    planted = {m: v["planted_skate_m_s"] for m, v in out["summary"].items()}
+    assert planted["limit"] is None
+    assert all(0.0 <= planted[m] <= skate[m] for m in ("pipeline", "gmr", "baseline")), planted
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "eval_robot_op3_segments.png",
         "eval_robot_op3_strip.png",
