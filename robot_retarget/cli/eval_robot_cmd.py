@@ -159,12 +159,19 @@ def run(args: argparse.Namespace) -> int:
     )
     from robot_retarget.evaluation.robot.segments import RobotBodyModel
     from robot_retarget.nn.dataset import DEFAULT_VALIDATION_SUBJECTS
+    from robot_retarget.optimize.settings import RetargetSettings
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.robot.loader import load_robot_config
     from robot_retarget.runtime.loader import check_foot_lock, load_runtime_model
 
     try:
-        config = with_retarget_overrides(load_robot_config(args.robot), _overrides(args.set))
+        config = load_robot_config(args.robot)
+        overrides = _overrides(args.set)
+        # Checked here, so an error names --set, not the robot's file.
+        RetargetSettings.from_mapping(
+            overrides, bone_names=tuple(b.canonical for b in config.bones), path="--set"
+        )
+        config = with_retarget_overrides(config, overrides)
         subjects = DEFAULT_VALIDATION_SUBJECTS
         if args.val_subjects:
             subjects = tuple(s for s in args.val_subjects.split(",") if s)
@@ -290,5 +297,7 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
 
 
 def _label(model: str, args: argparse.Namespace) -> str:
-    """The model as the report names it: with its foot lock when ``--foot-lock`` ran it."""
-    return f"{model} + foot lock" if args.foot_lock else str(model)
+    """The model as the report names it: with its foot lock when ``--foot-lock`` ran it, and
+    the ``--set`` overrides it ran with (so a saved report says how it differs)."""
+    label = f"{model} + foot lock" if args.foot_lock else str(model)
+    return f"{label} (--set {' '.join(args.set)})" if args.set else label

@@ -258,25 +258,31 @@ def planted_feet(config: RobotConfig, motion: HumanMotion) -> npt.NDArray[np.boo
     return _human_planted(human, human_foot_heights_m(human), motion.fps, sides)
 
 
-def foot_skate_m_s(
-    feet: npt.ArrayLike,
-    fps: float,
-    contact_m: float = CONTACT_M,
-    *,
-    planted: npt.ArrayLike | None = None,
-) -> float:
+def foot_skate_m_s(feet: npt.ArrayLike, fps: float, contact_m: float = CONTACT_M) -> float:
     """Mean horizontal speed (m/s) of robot foot points that stay on the ground (z within
-    ``contact_m``) from one frame to the next; 0 when no foot is ever down twice in a row.
-    ``planted`` (T, F): count only points whose side the performer stands on in both frames
-    (:func:`planted_feet`): a stance foot sliding, not a swing foot skimming the floor."""
+    ``contact_m``) from one frame to the next; 0 when no foot is ever down twice in a row."""
     f = np.asarray(feet, dtype=np.float64)  # (T, F, 3) world
-    if len(f) < 2:
-        return 0.0
-    down = f[:, :, 2] <= contact_m
-    if planted is not None:
-        down &= np.asarray(planted, dtype=bool)
+    skate = _sliding(f, fps, f[:, :, 2] <= contact_m)
+    return 0.0 if skate is None else skate
+
+
+def planted_skate_m_s(
+    feet: npt.ArrayLike, fps: float, planted: npt.ArrayLike, contact_m: float = CONTACT_M
+) -> float | None:
+    """:func:`foot_skate_m_s` of the points whose side the performer stands on in both frames
+    (``planted`` (T, F), :func:`planted_feet`): a stance foot sliding, not a swing foot
+    skimming the floor. None when no such point is on the ground twice in a row (nothing
+    to measure, not a perfect score)."""
+    f = np.asarray(feet, dtype=np.float64)
+    return _sliding(f, fps, (f[:, :, 2] <= contact_m) & np.asarray(planted, dtype=bool))
+
+
+def _sliding(feet: FloatArray, fps: float, down: npt.NDArray[np.bool_]) -> float | None:
+    """Mean horizontal speed of the points ``down`` in two consecutive frames (None: none)."""
+    if len(feet) < 2:
+        return None
     both = down[1:] & down[:-1]
     if not both.any():
-        return 0.0
-    step = np.linalg.norm(f[1:, :, :2] - f[:-1, :, :2], axis=-1)
+        return None
+    step = np.linalg.norm(feet[1:, :, :2] - feet[:-1, :, :2], axis=-1)
     return float(step[both].mean() * fps)

@@ -717,6 +717,10 @@ class _Builder:
         out = {}
         for k, v in value.items():
             key = self.string(k, "retarget")
+            if isinstance(v, bool):  # every option is a number; level_feet reads like a switch
+                raise self.error(
+                    f"retarget.{key}", f"expected a number, got {v!r}: write {int(v)} instead"
+                )
             out[key] = self.number(v, f"retarget.{key}")
         return out
 

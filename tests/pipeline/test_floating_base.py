@@ -29,6 +29,7 @@ from robot_retarget.pipeline.floating_base import (
     foot_skate_m_s,
     human_foot_heights_m,
     leg_length_m,
+    planted_skate_m_s,
     trajectory_feet,
 )
 from robot_retarget.pipeline.step import RetargetStep
@@ -251,6 +252,10 @@ def test_skate_under_planted_feet_counts_only_the_feet_the_performer_stands_on()
     planted = np.zeros((10, 2), dtype=bool)
     planted[:, 0] = True
     assert foot_skate_m_s(feet, 100.0) == pytest.approx(0.5)  # (0 + 1 m/s) / 2
-    assert foot_skate_m_s(feet, 100.0, planted=planted) == 0.0
+    assert planted_skate_m_s(feet, 100.0, planted) == 0.0
     planted[:, 1] = True
-    assert foot_skate_m_s(feet, 100.0, planted=planted) == pytest.approx(0.5)
+    assert planted_skate_m_s(feet, 100.0, planted) == pytest.approx(0.5)
+    # Nothing planted on the floor: nothing measured, not a perfect score.
+    assert planted_skate_m_s(feet, 100.0, np.zeros((10, 2), dtype=bool)) is None
+    feet[:, :, 2] = 0.05
+    assert planted_skate_m_s(feet, 100.0, planted) is None

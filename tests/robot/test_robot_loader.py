@@ -107,6 +107,8 @@ MISTAKES = [
      "start: l_el_link, end: r_hand}", "bones[3]", "lies on the robot's right"),
     ("a bone that does not join its parent", "start: l_ankle_center, end: l_toe}",
      "start: l_hip_center, end: l_toe}", "bones[8].start", "a limb's bones join end to start"),
+    ("an option written as a switch", "retarget:\n", "retarget:\n  level_feet: true\n",
+     "retarget.level_feet", "got True: write 1 instead"),
 ]  # fmt: skip
 
 

@@ -73,6 +73,7 @@ from robot_retarget.pipeline.floating_base import (
     floating_base,
     foot_skate_m_s,
     planted_feet,
+    planted_skate_m_s,
     trajectory_feet,
 )
 from robot_retarget.robot.config import RobotConfig
@@ -357,7 +358,7 @@ class RobotEvaluator:
             m: dataclasses.replace(
                 c,
                 foot_skate_m_s=foot_skate_m_s(feet[m], rate),
-                planted_skate_m_s=foot_skate_m_s(feet[m], rate, planted=planted),
+                planted_skate_m_s=planted_skate_m_s(feet[m], rate, planted),
             )
             if m in feet
             else c
@@ -474,9 +475,17 @@ def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
             fallbacks=sum(p.fallbacks for p in per) if has else None,
             ms_per_frame=float(sum(wi * p.ms_per_frame for wi, p in zip(w, per, strict=True))),
             foot_skate_m_s=_weighted(w, [p.foot_skate_m_s for p in per]),
-            planted_skate_m_s=_weighted(w, [p.planted_skate_m_s for p in per]),
+            # Clips where the performer never stands on a foot the robot has down say nothing.
+            planted_skate_m_s=_weighted_present(w, [p.planted_skate_m_s for p in per]),
         )
     return out
+
+
+def _weighted_present(w: FloatArray, values: Sequence[float | None]) -> float | None:
+    """The ``w``-weighted mean of the clips that have a value, or None if none has."""
+    present = [(wi, v) for wi, v in zip(w, values, strict=True) if v is not None]
+    total = sum(wi for wi, _ in present)
+    return float(sum(wi * v for wi, v in present) / total) if present and total > 0 else None
 
 
 def _weighted(w: FloatArray, values: Sequence[float | None]) -> float | None:

@@ -28,7 +28,7 @@ def test_json_and_plots(
     assert eval_robot_cmd.run(args) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["robot"] == "op3"
-    assert out["model"] == "oracle"
+    assert out["model"] == "oracle (--set w_orientation=0.05)"  # the override on record
     assert len(out["clips"]) == 3
     skate = {m: v["foot_skate_m_s"] for m, v in out["summary"].items()}
     assert skate["limit"] is None  # per-frame poses: no feet that move
@@ -54,6 +54,15 @@ def test_unknown_subject_is_an_error(
 def test_bad_override() -> None:
     with pytest.raises(SystemExit):
         eval_robot_cmd.run(_args("--set", "w_orientation"))
+
+
+def test_an_override_out_of_range_is_named_as_the_command_lines(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert eval_robot_cmd.run(_args("--set", "level_feet=1.5")) == 1
+    err = capsys.readouterr().err
+    assert "--set: key 'retarget.level_feet': must be a share 0 … 1, got 1.5" in err
+    assert "op3.yaml" not in err
 
 
 def test_corrupt_refuses_an_unknown_kind(capsys: pytest.CaptureFixture[str],
