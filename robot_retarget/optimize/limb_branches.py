@@ -88,10 +88,12 @@ class LimbBranches:
             return q, math.inf
         return np.clip(x, s.lbx, s.ubx), float(s.f[0])
 
+    NUM_STARTS = 3  # what starts() returns, in this order (a whole-clip choice indexes them)
+
     @staticmethod
     def starts(q: FloatArray, joints: IntArray) -> list[FloatArray]:
-        """A limb's starts: ``q``, and its joints at zero and negated (clipped by
-        :meth:`optimum`)."""
+        """A limb's :data:`NUM_STARTS` starts: ``q``, and its joints at zero and negated
+        (clipped by :meth:`optimum`)."""
         zero = q.copy()
         zero[joints] = 0.0
         neg = q.copy()

@@ -158,8 +158,7 @@ def floating_base(
     z = lowest - rel[:, :, 2].min(axis=1)
     pos = np.column_stack([track[:, 0], track[:, 1], z])
     if pin_feet:
-        planted = _human_planted(human, heights, motion.fps, _frame_sides(config, feet))
-        _pin_stance_feet(pos, rel, planted, contact_m)
+        _pin_stance_feet(pos, rel, planted_feet(config, human, motion.fps), contact_m)
     world_feet = rel + pos[:, None, :]
     root_quat = quat.make_continuous(quat.from_matrix(base_rot), axis=0)
     return FloatingBase(pos, root_quat, world_feet, feet)
@@ -249,13 +248,16 @@ def trajectory_feet(
     return np.asarray(rel + np.asarray(root_pos, dtype=np.float64)[:, None, :])
 
 
-def planted_feet(config: RobotConfig, motion: HumanMotion) -> npt.NDArray[np.bool_]:
-    """(T, F): the performer stands on the side of each of the robot's foot points
-    (:func:`foot_points`), as the pinning decides it (a foot joint near its standing height and
-    slow)."""
-    human = motion.positions()
+def planted_feet(
+    config: RobotConfig, positions: npt.ArrayLike, fps: float
+) -> npt.NDArray[np.bool_]:
+    """(T, F): the performer, at global joint positions (T, 22, 3) Y up at ``fps``, stands on
+    the side of each of the robot's foot points (:func:`foot_points`): a foot joint near its
+    standing height and slow. The pinning holds only these feet; eval-robot's skate under
+    planted feet counts only them."""
+    human = np.asarray(positions, dtype=np.float64)
     sides = _frame_sides(config, foot_points(config))
-    return _human_planted(human, human_foot_heights_m(human), motion.fps, sides)
+    return _human_planted(human, human_foot_heights_m(human), fps, sides)
 
 
 def foot_skate_m_s(feet: npt.ArrayLike, fps: float, contact_m: float = CONTACT_M) -> float:

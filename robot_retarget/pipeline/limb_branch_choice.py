@@ -23,9 +23,10 @@ from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.evaluation.robot.metrics import segment_angles
 from robot_retarget.evaluation.robot.segments import RobotBodyModel, human_body_points
 from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.optimize.limb_branches import LimbBranches
 from robot_retarget.pipeline.step import RetargetStep
 
-STARTS = 3  # LimbBranches.starts: the current optimum, the joints at zero, negated
+STARTS = LimbBranches.NUM_STARTS  # the current optimum, the joints at zero, negated
 _SCORE_FPS = 10.0
 _PROBE_RAD = 0.3
 

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 
 from robot_retarget.optimize import FrameTargets, Retargeter
 from robot_retarget.optimize.chains import coupled_groups
+from robot_retarget.optimize.limb_branches import LimbBranches
 from robot_retarget.robot.config import RobotConfig
 
 _STATIC_DT_S = 1e3  # as settle: no velocity limit, no smoothing
@@ -96,3 +97,10 @@ def test_poppy_limbs_hang_from_its_spine(poppy: RobotConfig) -> None:
     legs = [sorted(f"{s}_{j}" for j in ("hip_x", "hip_z", "hip_y", "knee_y", "ankle_y"))
             for s in ("l", "r")]  # fmt: skip
     assert names == sorted(arms + legs)
+
+
+def test_the_start_count_a_whole_clip_choice_indexes_is_the_starts_given() -> None:
+    q = np.array([0.4, -0.2, 0.7])
+    starts = LimbBranches.starts(q, np.array([0, 2]))
+    assert len(starts) == LimbBranches.NUM_STARTS
+    np.testing.assert_array_equal(starts[0], q)  # the current optimum first

@@ -353,7 +353,7 @@ class RobotEvaluator:
             "gmr": floating_base(self.config, human_n, gmr.q[:n]).feet,
             "baseline": floating_base(self.config, human_n, base.q[:n]).feet,
         }
-        planted = planted_feet(self.config, human_n)
+        planted = planted_feet(self.config, pos, rate)  # pos: human_n's, at the run's rate
         methods = {
             m: dataclasses.replace(
                 c,
