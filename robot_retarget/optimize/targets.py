@@ -149,6 +149,40 @@ def trunk_bones(problem: RobotProblem) -> list[int]:
     return [k for k, b in enumerate(problem.bones) if spans_trunk(b.canonical, b.canonical_end)]
 
 
+def _direct_bones(problem: RobotProblem) -> list[int]:
+    """Bones whose start joint carries them (the end joint's parent): their rest direction is a
+    fixed offset in the carrier's frame. The others (the trunk's torso line, a bone over several
+    joints) keep the canonical rest normal."""
+    return [
+        k
+        for k, b in enumerate(problem.bones)
+        if b.carrier_joint == CANONICAL_JOINTS.index(b.canonical)
+    ]
+
+
+def rest_normals(problem: RobotProblem, rest_dirs: npt.ArrayLike, bones: list[int]) -> FloatArray:
+    """(…, B, 3) each bone's rest normal in its carrier's frame (canonical axes), turned with the
+    bone from the canonical rest direction onto ``rest_dirs`` (…, len(bones), 3), the
+    skeleton's own, for ``bones``; the canonical rest normal for the others.
+
+    The robot's normal at its zero pose is its bone's, turned the same way
+    (:func:`.bone_model.alignment`), so a normal target is perpendicular to its direction
+    target. Without the turn, OP3's foot (its ankle → toe line 4.65° steeper than the canonical
+    foot's) had a roll target pitched 4.65° off its direction target, and the two terms pulled
+    the foot between them."""
+    to_c = problem.canonical_to_root.T
+    normals = np.array([to_c @ b.rest_normal for b in problem.bones])
+    axes = np.array([to_c @ b.rest_axis for b in problem.bones])
+    dirs = np.asarray(rest_dirs, dtype=np.float64)
+    out = np.array(np.broadcast_to(normals, (*dirs.shape[:-2], *normals.shape)))
+    if bones:
+        # A zero-length bone has no direction of its own: the canonical one.
+        short = np.linalg.norm(dirs, axis=-1, keepdims=True) < 1e-9
+        turn = quat.from_two_vectors(axes[bones], np.where(short, axes[bones], dirs))
+        out[..., bones, :] = quat.rotate(turn, normals[bones])
+    return out
+
+
 def targets_from_rotations(
     problem: RobotProblem,
     skeleton: Skeleton,
@@ -215,8 +249,14 @@ def targets_from_globals(
     shoulders = 0.5 * (pos[:, Joint.LeftArm] + pos[:, Joint.RightArm])
     vectors[:, trunk_bones(problem)] = (shoulders - hips)[:, None]
     dirs = _unit_rows(np.einsum("tij,tbj->tbi", m, vectors), rest_axes)
-    normals_c = np.array([problem.canonical_to_root.T @ b.rest_normal for b in problem.bones])
-    carried = quat.rotate(glob[:, carriers], normals_c[None])  # (T, B, 3) canonical
+    # Each bone's rest direction in its carrier's frame, as this skeleton has it.
+    direct = _direct_bones(problem)
+    own = quat.rotate(
+        quat.conjugate(glob[:, [carriers[k] for k in direct]]),
+        pos[:, [ends[k] for k in direct]] - pos[:, [starts[k] for k in direct]],
+    )
+    normals_c = rest_normals(problem, own, direct)  # (T, B, 3)
+    carried = quat.rotate(glob[:, carriers], normals_c)  # (T, B, 3) canonical
     normals = _unit_rows(np.einsum("tij,tbj->tbi", m, carried), rest_axes)
     ee = None
     if end_effectors and problem.ee_frames:
@@ -288,7 +328,8 @@ class FrameTargetBuilder:
         self._rot_index = np.array(
             [parent[i] for i in range(1, j)] + [b.carrier_joint for b in bones], dtype=np.int64
         )
-        normals_c = np.array([problem.canonical_to_root.T @ b.rest_normal for b in bones])
+        direct = _direct_bones(problem)
+        normals_c = rest_normals(problem, skeleton.offsets[[ends[k] for k in direct]], direct)
         self._vectors = np.concatenate([skeleton.offsets[1:], normals_c])[:, :, None]
         self._num_offsets = j - 1
         self._num_bones = nb

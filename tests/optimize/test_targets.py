@@ -244,3 +244,43 @@ def test_the_trunk_bone_follows_the_torso_line_not_the_neck_joint(
         np.sum(neck * torso, axis=1) / np.linalg.norm(neck, axis=1) / np.linalg.norm(torso, axis=1)
     )
     assert np.degrees(np.arccos(cos)).min() > 3.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(arrays(np.float64, (3, 22, 3), elements=st.floats(-3.0, 3.0)))
+def test_normal_targets_are_perpendicular_to_direction_targets(rotvecs: np.ndarray) -> None:
+    """On the robot's own skeleton a bone's roll target stands at right angles to its direction
+    target, as the robot's normal does to its bone: OP3's foot (ankle → toe 4.65° steeper than
+    the canonical foot) once had a roll target 4.65° off, and the two terms pulled the foot
+    between them."""
+    problem = _op3_problem()
+    skeleton = robot_canonical_skeleton(problem.config)
+    quats = quat.from_rotation_vector(rotvecs)
+    clip = targets_from_rotations(problem, skeleton, quats)
+    builder = FrameTargetBuilder(problem, skeleton)
+    assert clip.normals is not None
+    direct = [k for k, b in enumerate(problem.bones) if b.canonical != "Hips"]
+    for t in range(len(quats)):
+        frame = builder(quats[t])
+        assert frame.normals is not None
+        for dirs, normals in (
+            (clip.directions[t], clip.normals[t]),
+            (frame.directions, frame.normals),
+        ):
+            dots = np.einsum("bi,bi->b", dirs[direct], normals[direct])
+            np.testing.assert_allclose(dots, 0.0, atol=1e-9)
+
+
+def test_rest_targets_are_the_robots_zero_pose_on_its_own_skeleton() -> None:
+    """Identity rotations on the robot's skeleton: each limb bone's direction and normal targets
+    are the robot's own at its zero pose (up to the trunk frame's own tilt there)."""
+    problem = _op3_problem()
+    tg = FrameTargetBuilder(problem, robot_canonical_skeleton(problem.config))(_rest()[0])
+    zero = np.zeros(problem.num_joints)
+    dirs = np.asarray(problem.directions_function(zero)).T
+    normals = np.asarray(problem.normals_function(zero)).T
+    assert tg.normals is not None
+    limbs = [k for k, b in enumerate(problem.bones) if b.canonical not in ("Hips", "Neck")]
+    for got, want in ((tg.directions, dirs), (tg.normals, normals)):
+        angles = np.degrees(np.arccos(np.clip(np.einsum("bi,bi->b", got, want), -1.0, 1.0)))
+        assert np.all(angles[limbs] < 0.1), angles
