@@ -40,6 +40,7 @@ from robot_retarget.pipeline.clip_converter import (
     ClipReport,
     ConvertOptions,
 )
+from robot_retarget.pipeline.defaults import MODEL_HELP
 
 NAME = "convert"
 HELP = "Retarget BVH clip(s) to a robot trajectory (.npz/.csv/.json), preview, robot BVH."
@@ -63,7 +64,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         choices=[f[1:] for f in _FORMATS],
         help="file format for folder input (default npz; a single clip's is --out's suffix)",
     )
-    parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    parser.add_argument("--model", help=MODEL_HELP)
     parser.add_argument(
         "--fps", type=float, help="output frame rate (default: the robot's control rate)"
     )
@@ -126,10 +127,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 class ProgressBar:
     """A one-line text progress bar on stderr, redrawn in place on a terminal (at most ~50
-    times per task); only the final line when stderr is a file."""
+    times per task); only the final line when stderr is a file. ``unit``: what the count
+    counts, shown after it."""
 
-    def __init__(self, label: str, *, width: int = 30, stream: TextIO | None = None) -> None:
+    def __init__(
+        self, label: str, *, width: int = 30, stream: TextIO | None = None, unit: str = ""
+    ) -> None:
         self.label = label
+        self.unit = f" {unit}" if unit else ""
         self.width = width
         self.stream = stream if stream is not None else sys.stderr
         self._last = -1
@@ -145,7 +150,9 @@ class ProgressBar:
         pct = 100 * done // max(total, 1)
         end = "\n" if done >= total else ""
         prefix = "\r" if self._tty else ""
-        self.stream.write(f"{prefix}{self.label} [{bar}] {pct:3d}% ({done}/{total}){end}")
+        self.stream.write(
+            f"{prefix}{self.label} [{bar}] {pct:3d}% ({done}/{total}{self.unit}){end}"
+        )
         self.stream.flush()
 
 
@@ -278,6 +285,21 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
     )
 
 
+def _solves_note(options: ConvertOptions, control_rate_hz: float) -> str:
+    """What a clip's progress bar counts: solves of the clip's frames resampled to the output
+    rate, one pass per start of the branch choice and one that writes the file
+    (robot_retarget.pipeline.convert): 96 frames at 125 Hz count to 384."""
+    from robot_retarget.pipeline.limb_branch_choice import STARTS
+
+    rate = options.fps if options.fps is not None else control_rate_hz
+    if not options.whole_clip_branches:
+        return f"progress counts solves, one per frame at {rate:g} Hz"
+    return (
+        f"progress counts solves, {STARTS + 1} per frame at {rate:g} Hz ({STARTS} passes choose "
+        "each limb's branch, 1 writes the file)"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     for option, value in (("--fps", args.fps), ("--keypoint-fps", args.keypoint_fps)):
         if value is not None and not plausible_fps(value):
@@ -287,9 +309,11 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None or args.ray_address is not None:
         return _run_batch(args)
     jobs = _plan(args)
-    converter = ClipConverter(_options(args))
+    options = _options(args)
+    converter = ClipConverter(options)
     print(
-        f"robot {converter.config.name}, model {converter.model.name}, {len(jobs)} clip(s)",
+        f"robot {converter.config.name}, model {converter.model.name}, {len(jobs)} clip(s); "
+        + _solves_note(options, converter.config.control_rate_hz),
         file=sys.stderr,
     )
     reports: list[ClipReport] = []
@@ -297,7 +321,7 @@ def run(args: argparse.Namespace) -> int:
     for k, job in enumerate(jobs):
         report = converter.convert(
             job,
-            ProgressBar(f"[{k + 1}/{len(jobs)}] {job.clip.name}"),
+            ProgressBar(f"[{k + 1}/{len(jobs)}] {job.clip.name}", unit="solves"),
             log=partial(print, file=sys.stderr),
         )
         if report.error is not None:

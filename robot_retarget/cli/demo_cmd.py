@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from robot_retarget.pipeline.defaults import MODEL_HELP
+
 NAME = "demo"
 HELP = "Built-in demo: synthetic clip → model → OP3 on a simulated Dynamixel bus → GIF + summary."
 
@@ -30,7 +32,7 @@ _TRACK_WINDOW = 5  # ticks
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out-dir", type=Path, default=Path("demo_output"), help="output folder")
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
-    parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    parser.add_argument("--model", help=MODEL_HELP)
     parser.add_argument("--speed", type=float, default=1.0, help="stream speed × real time")
     parser.add_argument("--seconds", type=float, default=12.0, help="clip length to use (≤ 12)")
     parser.add_argument("--no-preview", action="store_true", help="skip the GIF")
@@ -63,8 +65,13 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.sim.robot_bus import SimulatedRobotBus
     from robot_retarget.sources.replay import ReplaySource
 
-    if not (args.speed > 0 and 0 < args.seconds <= 12.0):
-        raise RetargetError("--speed must be positive and --seconds in (0, 12]")
+    # One message per option, naming only the wrong one (``not >`` also refuses NaN).
+    if not args.speed > 0:
+        raise RetargetError(f"--speed must be positive, got {args.speed:g}")
+    if not 0 < args.seconds <= 12.0:
+        raise RetargetError(
+            f"--seconds must be in (0, 12] (the demo routine is 12 s long), got {args.seconds:g}"
+        )
     if args.keypoint_model is not None and args.input != "2d":
         raise RetargetError("--keypoint-model lifts the 2D demo's keypoints: add --input 2d")
     t_start = time.perf_counter()

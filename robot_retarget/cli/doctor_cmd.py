@@ -28,7 +28,11 @@ HELP = "Check serial ports, servos on a bus vs the robot config, FTDI latency an
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", help="robot config name or YAML path: ping and compare")
-    add_port_argument(parser)
+    add_port_argument(
+        parser,
+        "default: every bus at its default_port from the robot config's buses; with --port, "
+        "only the buses named",
+    )
     parser.add_argument(
         "--bus", help="deprecated: use --port BUS=PATH (checks only this bus of the robot)"
     )
@@ -94,11 +98,14 @@ def run(args: argparse.Namespace) -> int:
             print(doctor.latency_advice(item, doctor.latency_timer_ms(item)))
         return 0
 
+    from robot_retarget.pipeline.backends import default_port_hint
+
     wanted = set(given) | ({args.bus} if args.bus is not None else set())
     buses = [b for b in config.buses if not wanted or b.name in wanted]
     ok = True
     for bus_cfg in buses:
         port = given.get(bus_cfg.name, bus_cfg.default_port)
+        hint = "" if bus_cfg.name in given else default_port_hint(config, bus_cfg.name)
         print(f"bus {bus_cfg.name}: {port}, Protocol {bus_cfg.protocol}, {bus_cfg.baud_rate} bps")
         print(f"  {doctor.latency_advice(port, doctor.latency_timer_ms(port))}")
         try:
@@ -109,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
                 cycles=args.cycles,
                 scan_all=args.scan_all,
                 fix_registers=args.fix_registers,
+                port_hint=hint,
             )
         except HardwareError as exc:
             print(f"  error: {exc}")

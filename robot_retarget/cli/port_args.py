@@ -40,9 +40,11 @@ class PortNotFoundError(HardwareError):
         super().__init__(f"serial port {port} does not exist ({hint}); check --port")
 
 
-def add_port_argument(parser: argparse.ArgumentParser) -> None:
-    """``--port [BUS=]PATH``, repeatable; the list lands in ``args.port``."""
-    parser.add_argument("--port", action="append", default=[], metavar="[BUS=]PATH", help=PORT_HELP)
+def add_port_argument(parser: argparse.ArgumentParser, omitted: str = "") -> None:
+    """``--port [BUS=]PATH``, repeatable; the list lands in ``args.port``. ``omitted``: what the
+    command does for a bus no ``--port`` names, added to the help."""
+    help_text = f"{PORT_HELP}; {omitted}" if omitted else PORT_HELP
+    parser.add_argument("--port", action="append", default=[], metavar="[BUS=]PATH", help=help_text)
 
 
 def split_port(item: str) -> tuple[str | None, str]:

@@ -31,6 +31,7 @@ from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.cli.image_size_arg import image_size_argument
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
 from robot_retarget.cli.tcp_port_arg import tcp_port_argument
+from robot_retarget.pipeline.defaults import MODEL_HELP
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
 if TYPE_CHECKING:
@@ -73,7 +74,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "hip position, which settles slowly when they walk about)",
     )
     parser.add_argument("--backend", choices=("sim", "dynamixel"), default="sim")
-    add_port_argument(parser)
+    add_port_argument(
+        parser, "default: a bus not named opens its default_port from the robot config's buses"
+    )
     parser.add_argument("--rate", type=float, help="control rate in Hz (default: the config's)")
     parser.add_argument("--duration", type=float, help="stop after S seconds")
     parser.add_argument(
@@ -91,7 +94,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "are carried with their parents, swapped left/right limbs are swapped back and "
         "frame-to-frame jitter is filtered as strongly as the stream shows it",
     )
-    parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    parser.add_argument("--model", help=MODEL_HELP)
     add_foot_lock_argument(parser)
     parser.add_argument("--loop", action="store_true", help="replay: start over at the end")
     parser.add_argument("--speed", type=float, default=1.0, help="replay speed factor")

@@ -69,6 +69,7 @@ class DynamixelBus:
         packet_timeout_ms: float = 4.0,
         retries: int = 2,
         name: str = "",
+        port_hint: str = "",
     ) -> None:
         if float(protocol) not in (1.0, 2.0):
             raise ValueError(f"protocol must be 1.0 or 2.0, got {protocol!r}")
@@ -80,6 +81,9 @@ class DynamixelBus:
         self.packet_timeout_ms = packet_timeout_ms
         self.retries = retries
         self.name = name or port_name
+        # Where port_name came from, told if it cannot be opened (e.g. a config default the
+        # user never typed, so they know which option names another).
+        self.port_hint = port_hint
         self.stats = BusStats()
         self.port: Any = None
         self.handler: Any = packet_handler(self.protocol)
@@ -95,9 +99,11 @@ class DynamixelBus:
         try:
             ok = port.openPort() and port.setBaudRate(self.baud_rate)
         except _PORT_ERRORS as exc:
+            hint = f"{self.port_hint}; " if self.port_hint else ""
             raise PortUnavailableError(
-                f"cannot open serial port {self.port_name} ({exc}); check the cable, the port "
-                "name (`robot-retarget doctor` lists ports) and that you are in the dialout group",
+                f"cannot open serial port {self.port_name} ({exc}); {hint}check the cable, the "
+                "port name (`robot-retarget doctor` lists ports) and that you are in the dialout "
+                "group",
                 port=self.port_name,
             ) from exc
         if not ok:

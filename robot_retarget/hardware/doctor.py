@@ -128,11 +128,13 @@ def check_bus(
     cycles: int = 200,
     scan_all: bool = False,
     fix_registers: bool = False,
+    port_hint: str = "",
 ) -> BusReport:
     """Ping the bus, compare with the config, check the EEPROM other tools leave behind (and,
     with ``fix_registers``, write the expected values) and time ``cycles`` write+read cycles.
 
     The cycle writes each servo's own present position back as its goal, so nothing moves.
+    ``port_hint`` goes into the error if ``port`` cannot be opened (:class:`DynamixelBus`).
     """
     joints = [j for j in config.joints if j.bus == bus_cfg.name]
     report = BusReport(bus_cfg.name, port, bus_cfg.protocol, bus_cfg.baud_rate)
@@ -143,6 +145,7 @@ def check_bus(
         packet_timeout_ms=config.hardware.packet_timeout_ms,
         retries=1,
         name=bus_cfg.name,
+        port_hint=port_hint,
     )
     bus.open()
     try:

@@ -29,6 +29,7 @@ from robot_retarget.nn.checkpoint import load_checkpoint
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.nn.models.san import SAN
+from robot_retarget.runtime.model import not_a_model
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 from robot_retarget.skeleton.skeleton import Skeleton
 
@@ -94,6 +95,13 @@ def checkpoint_file(text: str) -> Path | None:
             "first validation); name a .pt checkpoint",
             model=text,
         )
+    kind = not_a_model(candidate)
+    if kind is not None:
+        raise ModelLoadError(
+            f"{text}: {kind}, not a model: name a model such as default, a .pt checkpoint or a "
+            "training run folder",
+            model=text,
+        )
     if candidate.suffix == ".npz":
         raise ModelLoadError(
             f"{text}: a numpy runtime file, already exported (convert, stream and the API take "
@@ -107,10 +115,13 @@ def checkpoint_file(text: str) -> Path | None:
     return None
 
 
-def load_model(name_or_path: str | Path = DEFAULT_MODEL, *, device: str = "cpu") -> LoadedModel:
+def load_model(
+    name_or_path: str | Path = DEFAULT_MODEL, *, device: str = "cpu", runtime_files: bool = False
+) -> LoadedModel:
     """A model by built-in name, shipped checkpoint name or checkpoint path.
 
-    Raises ModelLoadError naming the available models when nothing matches.
+    Raises ModelLoadError naming the available models when nothing matches; ``runtime_files``:
+    the caller also takes a runtime ``.npz`` (load_runtime_model), so that error offers one.
     """
     text = str(name_or_path)
     if text in BUILTIN_MODELS:
@@ -121,8 +132,9 @@ def load_model(name_or_path: str | Path = DEFAULT_MODEL, *, device: str = "cpu")
     if path is None:
         raise ModelLoadError(
             f"no model {text!r}: not a built-in model, a shipped checkpoint or a checkpoint "
-            f"file; available names: {', '.join(available_models())} (or pass a .pt path or "
-            "a training run folder)",
+            f"file; available names: {', '.join(available_models())} (or pass "
+            f"{'a runtime .npz written by export, ' if runtime_files else ''}a .pt path or a "
+            "training run folder)",
             model=text,
         )
     loaded = load_checkpoint(path)

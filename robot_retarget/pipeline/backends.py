@@ -42,6 +42,17 @@ def parse_ports(config: RobotConfig, ports: Sequence[str]) -> dict[str, str]:
     return out
 
 
+def default_port_hint(config: RobotConfig, bus_name: str) -> str:
+    """What to tell the user when the port of a bus no ``--port`` named cannot be opened: it is
+    the config's ``default_port``, and how to give another."""
+    bus = next(b for b in config.buses if b.name == bus_name)
+    option = "--port PATH" if len(config.buses) == 1 else f"--port {bus_name}=PATH"
+    return (
+        f"{bus.default_port} is the robot config's default port for bus {bus_name} (no --port "
+        f"named it): give {option}"
+    )
+
+
 def open_backend(
     config: RobotConfig, kind: str, ports: Sequence[str] = (), *, fix_registers: bool = False
 ) -> JointBackend:
@@ -56,6 +67,10 @@ def open_backend(
         from robot_retarget.hardware.bus import buses_from_config
         from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
 
-        buses = buses_from_config(config, parse_ports(config, ports))
+        given = parse_ports(config, ports)
+        buses = buses_from_config(config, given)
+        for name, bus in buses.items():
+            if name not in given:
+                bus.port_hint = default_port_hint(config, name)
         return DynamixelBackend(config, buses, handle_signals=False, fix_registers=fix_registers)
     raise HardwareError(f"unknown backend {kind!r}; choose one of {', '.join(BACKENDS)}")

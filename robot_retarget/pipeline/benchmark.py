@@ -22,6 +22,7 @@ from typing import Any
 
 from robot_retarget.bench_stats import non_negative_int, positive_int, stage_records
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
+from robot_retarget.pipeline.defaults import MODEL_HELP
 
 HELP = "Per-frame compute time of the live path: decode, network, targets, optimizer, safety."
 
@@ -37,7 +38,7 @@ NUMPY_STAGES: tuple[str, ...] = (
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
-    parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    parser.add_argument("--model", help=MODEL_HELP)
     parser.add_argument("--frames", type=positive_int, default=3000, help="timed frames")
     parser.add_argument("--warmup", type=non_negative_int, default=200, help="untimed frames first")
     parser.add_argument(

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from robot_retarget.bench_stats import positive_int
+from robot_retarget.pipeline.defaults import MODEL_HELP
 
 HELP = "Folder conversion on 1, 2, ... Ray workers: frames/s, per-clip time, speed-up."
 
@@ -39,7 +40,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
     add_data_argument(parser)
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
-    parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    parser.add_argument("--model", help=MODEL_HELP)
     parser.add_argument("--workers", default="1,2", help="worker counts, comma separated")
     parser.add_argument("--clips", type=positive_int, default=20, help="clips to convert")
     parser.add_argument(

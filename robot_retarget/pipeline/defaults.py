@@ -15,6 +15,13 @@ FALLBACK_MODEL = "copy-scaled"
 
 DEFAULT_MODEL = "default"
 
+MODEL_HELP = (
+    "a model name such as default or copy-scaled, a runtime .npz written by export, a .pt "
+    "checkpoint or a training run folder (omitted: the shipped model 'default'; copy-scaled "
+    "where it is not installed)"
+)
+"""``--model``'s help wherever the model goes through load_runtime_model."""
+
 
 def default_model_name() -> str:
     """The shipped default model's name if it ships (its numpy runtime or its checkpoint),

@@ -26,13 +26,14 @@ from typing import Any
 import numpy as np
 
 from robot_retarget.bench_stats import positive_float, positive_int
+from robot_retarget.pipeline.defaults import MODEL_HELP
 
 HELP = "Live stream on the simulated bus: late frames and tick jitter, with and without --view."
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
-    parser.add_argument("--model", help="model name or checkpoint path (default: the default)")
+    parser.add_argument("--model", help=MODEL_HELP)
     parser.add_argument("--rate", type=positive_float, default=125.0, help="control rate in Hz")
     parser.add_argument("--seconds", type=positive_float, default=20.0, help="length of each run")
     parser.add_argument("--repeats", type=positive_int, default=2, help="runs of each variant")

@@ -17,10 +17,12 @@ from typing import TYPE_CHECKING
 import numpy.typing as npt
 
 from robot_retarget.runtime.model import (
+    MODEL_FORMS,
     OnlineStep,
     RuntimeModel,
     load_runtime,
     no_foot_lock_error,
+    not_a_model,
 )
 from robot_retarget.skeleton.foot_lock_spec import CONTACT_FPS
 
@@ -48,20 +50,25 @@ def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | L
     if text in shipped:
         model = load_runtime(shipped[text])
         return dataclasses.replace(model, name=text)
+    from robot_retarget.errors import ModelLoadError
+
+    kind = not_a_model(Path(text))
+    if kind is not None:  # before torch reads it and fails in its own words
+        raise ModelLoadError(
+            f"{kind}, not a model: give --model {MODEL_FORMS}", path=text, model=text
+        )
     if text.endswith(".npz"):
         return load_runtime(text)
     try:
         from robot_retarget.nn.inference import load_model
     except ImportError as exc:
-        from robot_retarget.errors import ModelLoadError
-
         raise ModelLoadError(
             f"model {text!r} has no numpy runtime file and torch is not installed ({exc}); "
             "install torch (pip install robot-retarget[train]) or export the checkpoint with "
             "`robot-retarget export` where torch is",
             model=text,
         ) from None
-    loaded = load_model(text)
+    loaded = load_model(text, runtime_files=True)
     return runtime_of(loaded) or loaded
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -151,6 +152,41 @@ class RuntimeModel:
         """Whether the model holds planted feet on its output skeleton (residual models trained
         with ``foot_lock``, :mod:`robot_retarget.nn.models.foot_lock`)."""
         return isinstance(self.weights, ResidualWeights) and self.weights.foot_lock
+
+
+MODEL_FORMS = (
+    "a model name such as default, a runtime .npz written by export, a .pt checkpoint or a "
+    "training run folder"
+)
+"""What ``--model`` takes where a numpy runtime will do (convert, stream, demo, the API)."""
+
+# Files people pass as a model by mistake, by suffix: a clip, or a trajectory convert wrote.
+_NOT_MODEL_SUFFIXES = {
+    ".bvh": "a BVH motion clip",
+    ".csv": "a CSV file (a trajectory or keypoints)",
+    ".json": "a JSON file (a trajectory or keypoints)",
+}
+# The arrays of a trajectory .npz (robot_retarget.motion.trajectory); a runtime has __meta__.
+_TRAJECTORY_KEYS = frozenset({"joint_names", "q", "fps"})
+
+
+def not_a_model(path: Path) -> str | None:
+    """What ``path`` is when it is an existing file that holds no model (a motion clip, a robot
+    trajectory), for the error; None otherwise (it may still fail to load as a model)."""
+    if not path.is_file():
+        return None
+    suffix = path.suffix.lower()
+    if suffix in _NOT_MODEL_SUFFIXES:
+        return _NOT_MODEL_SUFFIXES[suffix]
+    if suffix == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                keys = set(z.files)
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+            return None  # the runtime reader says what is wrong with it
+        if keys >= _TRAJECTORY_KEYS:
+            return "a robot trajectory (joint angles over time, as convert writes)"
+    return None
 
 
 def no_foot_lock_error(name: str, path: Path | None = None) -> ModelLoadError:

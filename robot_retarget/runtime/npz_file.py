@@ -5,6 +5,7 @@ with ``allow_pickle=False`` so a file from anywhere cannot run code. Every numpy
 from __future__ import annotations
 
 import json
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +33,7 @@ def read_runtime_npz(path: Path, what: str) -> tuple[dict[str, np.ndarray], dict
             arrays = {k: z[k] for k in z.files}
     except FileNotFoundError:
         raise ModelLoadError(f"{what} not found", path=path) from None
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # a cut-off file too
         raise ModelLoadError(f"not a runtime .npz file ({exc})", path=path) from None
     if META_KEY not in arrays:
         raise ModelLoadError(

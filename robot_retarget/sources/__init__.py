@@ -75,6 +75,11 @@ def open_source(
         from robot_retarget.motion.human_motion import load_motion
 
         path = Path(spec[len("replay:") :])
+        if path.is_dir():
+            raise SourceError(
+                f"replay clip {path} is a folder; replay takes one clip: give "
+                "replay:PATH/TO/CLIP.bvh"
+            )
         if not path.is_file():
             raise SourceError(f"replay clip {path} does not exist; give replay:PATH/TO/CLIP.bvh")
         try:

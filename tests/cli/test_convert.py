@@ -210,6 +210,60 @@ def test_bad_arguments(tmp_path: Path) -> None:
     assert not (tmp_path / "t.npz").exists()
 
 
+def test_files_that_are_not_models_say_what_to_pass(tmp_path: Path) -> None:
+    """A clip or a trajectory given as --model: what the file is, and what --model takes (not
+    torch's unpickling error, nor a missing __meta__ entry)."""
+    clip = str(FIXTURES / "tiny_walk.bvh")
+    trajectory = RobotTrajectory(("a", "b"), np.zeros((3, 2)), 125.0).write(tmp_path / "t.npz")
+    takes = "a model name such as default, a runtime .npz written by export, a .pt checkpoint"
+    out = str(tmp_path / "o.npz")
+    for model, kind in ((clip, "a BVH motion clip"), (str(trajectory), "a robot trajectory")):
+        with pytest.raises(ModelLoadError, match=f"{kind}.*, not a model: give --model") as err:
+            _run(clip, "--out", out, "--model", model)
+        assert takes in str(err.value)
+        assert "Unpickling" not in str(err.value)
+        assert "__meta__" not in str(err.value)
+        assert err.value.path == model
+    with pytest.raises(ModelLoadError, match=r"or pass a runtime \.npz written by export, a \.pt"):
+        _run(clip, "--out", out, "--model", "nosuch")
+    cut = tmp_path / "cut.npz"  # a runtime cut off in the copy: an error, not a traceback
+    cut.write_bytes(trajectory.read_bytes()[:300])
+    with pytest.raises(ModelLoadError, match=r"not a runtime \.npz file"):
+        _run(clip, "--out", out, "--model", str(cut))
+    assert not (tmp_path / "o.npz").exists()
+
+
+def test_model_help_says_what_the_default_is() -> None:
+    parser = argparse.ArgumentParser()
+    convert_cmd.configure(parser)
+    action = next(a for a in parser._actions if "--model" in a.option_strings)
+    assert "the default)" not in str(action.help)
+    assert "omitted: the shipped model 'default'" in str(action.help)
+    assert "runtime .npz" in str(action.help)
+
+
+def test_progress_counts_solves_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A clip's bar counts the solves of its frames at the output rate, once per branch-choice
+    pass and once for the file: the header says so, and the count is labelled."""
+    from robot_retarget.pipeline.limb_branch_choice import STARTS
+
+    out = tmp_path / "t.npz"
+    assert _run(str(FIXTURES / "tiny_walk.bvh"), "--out", str(out)) == 0
+    frames = RobotTrajectory.read(out).num_frames  # at the control rate, not the clip's 30 fps
+    err = capsys.readouterr().err
+    assert f"progress counts solves, {STARTS + 1} per frame at 125 Hz" in err
+    total = (STARTS + 1) * frames
+    assert f"({total}/{total} solves)" in err
+    assert _run(str(FIXTURES / "tiny_walk.bvh"), "--out", str(out), "--force",
+                "--stream-branches", "--fps", "30") == 0  # fmt: skip
+    err = capsys.readouterr().err
+    frames = RobotTrajectory.read(out).num_frames
+    assert "progress counts solves, one per frame at 30 Hz" in err
+    assert f"({frames}/{frames} solves)" in err
+
+
 def test_progress_bar_writes_only_the_final_line_to_a_file() -> None:
     import io
 
@@ -218,3 +272,6 @@ def test_progress_bar_writes_only_the_final_line_to_a_file() -> None:
     for k in range(1, 101):
         bar(k, 100)
     assert buf.getvalue() == "clip [##########] 100% (100/100)\n"
+    buf = io.StringIO()
+    convert_cmd.ProgressBar("clip", width=10, stream=buf, unit="solves")(7, 7)
+    assert buf.getvalue() == "clip [##########] 100% (7/7 solves)\n"

@@ -39,9 +39,21 @@ def test_short_demo_passes_its_checks(tmp_path: Path, capsys: pytest.CaptureFixt
         demo_cmd.run(_args("--out-dir", str(out), "--seconds", "2"))
 
 
-def test_bad_arguments(tmp_path: Path) -> None:
-    with pytest.raises(RetargetError, match="--seconds"):
-        demo_cmd.run(_args("--out-dir", str(tmp_path), "--seconds", "20"))
+@pytest.mark.usefixtures("no_work")
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (("--seconds", "20"), r"^--seconds must be in \(0, 12\] .*got 20$"),
+        (("--seconds", "0"), r"^--seconds must be in \(0, 12\] .*got 0$"),
+        (("--speed", "0"), r"^--speed must be positive, got 0$"),  # --seconds is fine
+        (("--speed", "-2", "--seconds", "4"), r"^--speed must be positive, got -2$"),
+    ],
+)
+def test_bad_arguments_name_the_option_and_its_value(
+    tmp_path: Path, argv: tuple[str, ...], said: str
+) -> None:
+    with pytest.raises(RetargetError, match=said):
+        demo_cmd.run(_args("--out-dir", str(tmp_path), *argv))
 
 
 @pytest.mark.usefixtures("no_work")

@@ -4,12 +4,14 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+from pathlib import Path
 
 import pytest
 
 from robot_retarget.cli import doctor_cmd
 from robot_retarget.cli.main import main
-from robot_retarget.cli.port_args import PortNotFoundError
+from robot_retarget.cli.port_args import PORT_HELP, PortNotFoundError
 from robot_retarget.errors import HardwareError
 from robot_retarget.robot.loader import load_robot_config
 from robot_retarget.sim.robot_bus import SimulatedRobotBus
@@ -71,6 +73,37 @@ def test_two_buses_with_the_stream_syntax(capsys: pytest.CaptureFixture[str]) ->
     assert "--bus is deprecated; use --port BUS=PATH" in out_old.err
 
 
+def test_a_default_port_that_cannot_be_opened_says_where_it_came_from(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """Without --port doctor opens the config's default_port: the error says so and which
+    --port names another."""
+    import robot_retarget.robot.loader as loader
+
+    real = loader.load_robot_config
+
+    def missing_defaults(name: str) -> object:  # defaults that surely do not exist here
+        config = real(name)
+        buses = tuple(
+            dataclasses.replace(b, default_port=str(tmp_path / f"tty_{b.name}"))
+            for b in config.buses
+        )
+        return dataclasses.replace(config, buses=buses)
+
+    monkeypatch.setattr(loader, "load_robot_config", missing_defaults)
+    assert _run("--robot", "op3", "--cycles", "1") == 1
+    out = capsys.readouterr().out
+    assert f"{tmp_path / 'tty_main'} is the robot config's default port for bus main" in out
+    assert "give --port PATH;" in out
+    assert _run("--robot", "poppy_humanoid", "--port", "upper_body=/dev/null") == 1
+    out = capsys.readouterr().out
+    assert "default port" not in out  # a port the user named is not the config's
+    assert _run("--robot", "poppy_humanoid", "--bus", "lower_body") == 1
+    out = capsys.readouterr().out
+    assert f"{tmp_path / 'tty_lower_body'} is the robot config's default port" in out
+    assert "give --port lower_body=PATH;" in out
+
+
 def test_stream_and_doctor_document_the_same_port_syntax() -> None:
     from robot_retarget.cli import stream_cmd
 
@@ -80,5 +113,8 @@ def test_stream_and_doctor_document_the_same_port_syntax() -> None:
         module.configure(parser)
         action = next(a for a in parser._actions if "--port" in a.option_strings)
         helps.append((action.help, action.metavar, type(action).__name__))
-    assert helps[0] == helps[1]
+    assert [h[1:] for h in helps] == [h[1:] for h in helps[1:] + helps[:1]]
+    for text, _, _ in helps:  # the same syntax; each says what it does without --port
+        assert str(text).startswith(PORT_HELP)
+        assert "default_port from the robot config's buses" in str(text)
     assert "BUS=PATH" in str(helps[0][0])

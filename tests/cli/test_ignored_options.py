@@ -83,7 +83,7 @@ def test_exporting_a_file_that_is_no_checkpoint_is_one_short_line(
 ) -> None:
     assert main(["export", str(WALK), "--out", str(tmp_path / "m.npz")]) != 0
     err = capsys.readouterr().err.strip()
-    assert "not a readable checkpoint" in err
+    assert "a BVH motion clip, not a model: name a model such as default, a .pt checkpoint" in err
     assert "\n" not in err
     assert len(err) < 400
 

@@ -4,6 +4,7 @@ simulated Dynamixel bus (the bus must see the torque go off)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import shutil
 import signal
@@ -181,6 +182,41 @@ def test_ports_use_the_bus_syntax_and_must_exist() -> None:
                              "--backend", "dynamixel", "--port", "legs=/dev/null"))  # fmt: skip
 
 
+def test_a_default_port_that_cannot_be_opened_says_where_it_came_from(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A bus no --port names opens the config's default_port: the error says so, not only
+    "cannot open" a path the user never typed."""
+    import robot_retarget.robot.loader as loader
+
+    real = loader.load_robot_config
+
+    def missing_defaults(name: str) -> object:  # defaults that surely do not exist here
+        config = real(name)
+        buses = tuple(
+            dataclasses.replace(b, default_port=str(tmp_path / f"tty_{b.name}"))
+            for b in config.buses
+        )
+        return dataclasses.replace(config, buses=buses)
+
+    monkeypatch.setattr(loader, "load_robot_config", missing_defaults)
+    clip = f"replay:{FIXTURES / 'tiny_walk.bvh'}"
+    lower = tmp_path / "tty_lower_body"
+    controller, terminal = os.openpty()  # a port upper_body can open
+    upper = os.ttyname(terminal)
+    try:
+        with pytest.raises(HardwareError, match="cannot open serial port") as e:
+            stream_cmd.run(_args("--robot", "poppy_humanoid", "--source", clip, "--backend",
+                                 "dynamixel", "--port", f"upper_body={upper}"))  # fmt: skip
+    finally:
+        os.close(controller)
+        os.close(terminal)
+    assert f"{lower} is the robot config's default port for bus lower_body" in str(e.value)
+    assert "give --port lower_body=PATH" in str(e.value)
+    with pytest.raises(HardwareError, match="give --port PATH;"):
+        stream_cmd.run(_args("--robot", "op3", "--source", clip, "--backend", "dynamixel"))
+
+
 def test_a_smoothed_replay_stays_within_the_limits(tmp_path: Path) -> None:
     """``--one-euro``: the loop smooths its input; every command is still inside the limits."""
     record = tmp_path / "smoothed.npz"
@@ -219,6 +255,16 @@ def test_raw_positions_reaches_the_udp_source(monkeypatch: pytest.MonkeyPatch) -
     with pytest.raises(RetargetError, match="--raw-positions is about the position packets"):
         stream_cmd.run(_args("--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}", "--raw-positions"))
     assert len(seen) == 2  # refused before the source was opened
+
+
+def test_a_trajectory_as_model_says_what_to_pass(tmp_path: Path) -> None:
+    from robot_retarget.errors import ModelLoadError
+
+    trajectory = RobotTrajectory(("a",), np.zeros((2, 1)), 125.0).write(tmp_path / "t.npz")
+    clip = f"replay:{FIXTURES / 'tiny_walk.bvh'}"
+    for model in (str(FIXTURES / "tiny_walk.bvh"), str(trajectory)):
+        with pytest.raises(ModelLoadError, match=r"not a model: give --model a model name"):
+            stream_cmd.run(_args("--source", clip, "--model", model))
 
 
 def test_bad_numbers_are_refused() -> None:

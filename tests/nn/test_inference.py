@@ -48,6 +48,23 @@ def test_unknown_name_lists_what_exists() -> None:
     assert info.value.model == "no-such-model"
 
 
+def test_files_that_are_not_models_say_what_to_pass(tmp_path: Path) -> None:
+    """eval and export read checkpoints: a clip or a trajectory given as a model says what it
+    is and what to name instead (a runtime .npz is no answer here)."""
+    from robot_retarget.motion.trajectory import RobotTrajectory
+
+    clip = Path(__file__).resolve().parents[1] / "fixtures" / "motion" / "tiny_walk.bvh"
+    trajectory = RobotTrajectory(("a",), np.zeros((2, 1)), 125.0).write(tmp_path / "t.npz")
+    for path, kind in ((clip, "a BVH motion clip"), (trajectory, "a robot trajectory")):
+        with pytest.raises(ModelLoadError, match=f"{kind}.*, not a model: name a model") as e:
+            load_model(path)
+        assert "a .pt checkpoint or a training run folder" in str(e.value)
+        assert "Unpickling" not in str(e.value)
+        assert "runtime file" not in str(e.value)
+    with pytest.raises(ModelLoadError, match=r"\(or pass a \.pt path"):
+        load_model("no-such-model")  # eval takes no runtime .npz: not offered
+
+
 def test_checkpoint_by_path_by_run_folder_and_by_shipped_name(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

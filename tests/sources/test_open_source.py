@@ -48,6 +48,13 @@ def test_bad_specs(spec: str, match: str) -> None:
         open_source(spec)
 
 
+def test_replay_folder_says_folder(tmp_path: Path) -> None:
+    # a folder exists, so "does not exist" would send the user looking for a typo
+    with pytest.raises(SourceError, match="is a folder; replay takes one clip") as info:
+        open_source(f"replay:{tmp_path}")
+    assert "does not exist" not in str(info.value)
+
+
 def test_unreadable_replay_clip(tmp_path: Path) -> None:
     bad = tmp_path / "bad.bvh"
     bad.write_text("not a bvh")
