@@ -101,9 +101,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--stream-branches",
         action="store_true",
-        help="settle each limb in the first frame's best branch, as stream does (the file then "
-        "matches a stream of the clip at the same rate); default: each limb's branch chosen "
-        "on the whole clip",
+        help="settle each limb in the first frame's best branch and leave the swing feet as "
+        "solved, as stream does (the file then matches a stream of the clip at the same "
+        "rate); default: each limb's branch chosen on the whole clip, the swing feet lifted "
+        "to the performer's height",
     )
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     parser.add_argument(
@@ -282,6 +283,7 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
         canonical_input=args.canonical_input,
         foot_lock=args.foot_lock,
         whole_clip_branches=not args.stream_branches,
+        lift_swing_feet=not args.stream_branches,
     )
 
 
@@ -364,6 +366,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         "lead_in": options.lead_in,
         "foot_lock": options.foot_lock,
         "whole_clip_branches": options.whole_clip_branches,
+        "lift_swing_feet": options.lift_swing_feet,
         "format": args.format or "npz",
     }
     manifest = Manifest.open(args.out, settings, fresh=args.force)

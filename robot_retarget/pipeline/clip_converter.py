@@ -53,6 +53,9 @@ class ConvertOptions:
     # Each limb's branch chosen on the whole clip (robot_retarget.pipeline.limb_branch_choice);
     # False: the first frame's best, as ``stream`` runs it.
     whole_clip_branches: bool = True
+    # Swing feet lifted to the performer's height (robot_retarget.pipeline.swing_clearance);
+    # False: as solved, as ``stream`` sends them.
+    lift_swing_feet: bool = True
 
 
 @dataclass(frozen=True)
@@ -191,6 +194,7 @@ class ClipConverter:
             lead_in_speed_fraction=0.25 if opt.lead_in else None,
             network=None if network is None else network.step,
             whole_clip_branches=opt.whole_clip_branches,
+            lift_swing_feet=opt.lift_swing_feet,
         )
         traj = result.trajectory
         folders = job.make_folders

@@ -29,10 +29,11 @@ from robot_retarget.hardware.safety import SafetyLayer
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.motion.trajectory import RobotTrajectory
-from robot_retarget.pipeline.floating_base import floating_base
+from robot_retarget.pipeline.floating_base import FloatingBase, floating_base
 from robot_retarget.pipeline.recorder import RecordingBackend
 from robot_retarget.pipeline.start_ramp import toward
 from robot_retarget.pipeline.step import RetargetStep
+from robot_retarget.pipeline.swing_clearance import clear_swing_feet
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.runtime.model import OnlineStep
 
@@ -99,6 +100,7 @@ def convert_motion(
     lead_in_speed_fraction: float | None = None,
     network: OnlineStep | None = None,
     whole_clip_branches: bool = False,
+    lift_swing_feet: bool = True,
 ) -> ClipResult:
     """Retarget ``motion`` frame by frame at ``fps`` (default: the robot's control rate).
 
@@ -109,7 +111,12 @@ def convert_motion(
 
     ``whole_clip_branches``: choose each limb's branch on the whole clip
     (:mod:`robot_retarget.pipeline.limb_branch_choice`, what ``convert`` does); False keeps the
-    first frame's best, as ``stream`` does, and the file then matches a stream of the clip.
+    first frame's best, as ``stream`` does.
+
+    ``lift_swing_feet``: lift each swing foot as high as the performer's, turning only its
+    ankle's pitch joint (:mod:`robot_retarget.pipeline.swing_clearance`); False leaves the
+    feet as solved, as ``stream`` sends them (with ``whole_clip_branches`` False the file then
+    matches a stream of the clip).
 
     ``network``: the network step to use instead of the model's own (e.g. a
     :class:`~robot_retarget.pipeline.precomputed_step.PrecomputedStep` of the clip read on its
@@ -158,8 +165,13 @@ def convert_motion(
         step.settle_branches = None  # never left for the next clip (or a stream) to inherit
     wall = time.perf_counter() - t_start
     safety.disconnect()
-    # The base link's pose in the robot's world (Z up, x forward), feet on the ground.
-    base = floating_base(config, m, q, trunk_frames=trunk) if n else None
+    # The base link's pose in the robot's world (Z up, x forward), feet on the ground, and the
+    # swing feet lifted as high as the performer's (only the ankles' pitch joints move).
+    base: FloatingBase | None = None
+    if n and lift_swing_feet:
+        q, base = clear_swing_feet(config, m, q, trunk_frames=trunk)
+    elif n:
+        base = floating_base(config, m, q, trunk_frames=trunk)
     pos = base.root_pos if base is not None else root_pos
     quat = base.root_quat if base is not None else root_quat
     t0 = 0.0

@@ -190,6 +190,28 @@ def human_foot_heights_m(positions: npt.ArrayLike) -> FloatArray:
     return np.maximum(y - np.array([ankle, ankle, toe, toe]), 0.0)
 
 
+def performer_foot_heights_m(config: RobotConfig, motion: HumanMotion) -> dict[str, FloatArray]:
+    """Per side ("Left", "Right"), (T,) how high the performer's foot is above their ground,
+    scaled to the robot: the lower of its ankle and toe above their standing heights (the
+    rule that places the base, :func:`floating_base`), times the leg-length ratio."""
+    ratio = leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(motion.skeleton)
+    heights = human_foot_heights_m(motion.positions())
+    return {
+        side: ratio * heights[:, list(cols)].min(axis=1) for side, cols in _SIDE_COLUMNS.items()
+    }
+
+
+def foot_sides(config: RobotConfig) -> dict[str, tuple[str, ...]]:
+    """The robot's foot points (:func:`foot_points`) per side ("Left", "Right")."""
+    points = foot_points(config)
+    sides = _frame_sides(config, points)
+    return {
+        side: tuple(p for p, s in zip(points, sides, strict=True) if s == side)
+        for side in ("Left", "Right")
+        if side in sides
+    }
+
+
 def _human_planted(
     human: FloatArray, heights: FloatArray, fps: float, sides: list[str]
 ) -> npt.NDArray[np.bool_]:
@@ -277,6 +299,29 @@ def planted_skate_m_s(
     to measure, not a perfect score)."""
     f = np.asarray(feet, dtype=np.float64)
     return _sliding(f, fps, (f[:, :, 2] <= contact_m) & np.asarray(planted, dtype=bool))
+
+
+def swing_scuff_share(
+    config: RobotConfig, feet: npt.ArrayLike, planted: npt.ArrayLike, contact_m: float = CONTACT_M
+) -> float | None:
+    """The share of single-support swing frames (the performer has lifted a foot and stands
+    on the other) in which the robot's foot on the lifted side is within ``contact_m`` of the
+    floor: a swing foot that would scrape. ``feet`` (T, F, 3) world and ``planted`` (T, F)
+    (:func:`planted_feet`) in :func:`foot_points` order; None when the performer never stands
+    on one foot."""
+    f = np.asarray(feet, dtype=np.float64)
+    down = np.asarray(planted, dtype=bool)
+    sides = _frame_sides(config, foot_points(config))
+    scrapes, swings = 0, 0
+    for side in set(sides):
+        own = [k for k, s in enumerate(sides) if s == side]
+        other = [k for k, s in enumerate(sides) if s != side]
+        if not other:
+            continue
+        swing = ~down[:, own].any(axis=1) & down[:, other].any(axis=1)
+        swings += int(swing.sum())
+        scrapes += int((f[swing][:, own, 2].min(axis=1) <= contact_m).sum())
+    return scrapes / swings if swings else None
 
 
 def _sliding(feet: FloatArray, fps: float, down: npt.NDArray[np.bool_]) -> float | None:

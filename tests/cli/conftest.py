@@ -1,8 +1,10 @@
 """Fixtures for the command tests: a folder nobody may write into, a guard that fails a test
-when a command starts its work (loads a model) although it should have refused first."""
+when a command starts its work (loads a model) although it should have refused first, robot
+configs whose default serial ports do not exist."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 import subprocess
@@ -49,3 +51,23 @@ def no_work(monkeypatch: pytest.MonkeyPatch) -> None:
         raise AssertionError("the command started its work before refusing its arguments")
 
     monkeypatch.setattr("robot_retarget.nn.inference.load_model", refuse)
+
+
+@pytest.fixture
+def missing_default_ports(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
+    """Robot configs loaded by name get each bus's ``default_port`` at ``tmp/tty_<bus>``, a path
+    that does not exist; returns ``tmp``."""
+    import robot_retarget.robot.loader as loader
+
+    real = loader.load_robot_config
+
+    def missing_defaults(name: str) -> object:
+        config = real(name)
+        buses = tuple(
+            dataclasses.replace(b, default_port=str(tmp_path / f"tty_{b.name}"))
+            for b in config.buses
+        )
+        return dataclasses.replace(config, buses=buses)
+
+    monkeypatch.setattr(loader, "load_robot_config", missing_defaults)
+    return tmp_path

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 import pytest
@@ -74,23 +73,11 @@ def test_two_buses_with_the_stream_syntax(capsys: pytest.CaptureFixture[str]) ->
 
 
 def test_a_default_port_that_cannot_be_opened_says_where_it_came_from(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+    missing_default_ports: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Without --port doctor opens the config's default_port: the error says so and which
     --port names another."""
-    import robot_retarget.robot.loader as loader
-
-    real = loader.load_robot_config
-
-    def missing_defaults(name: str) -> object:  # defaults that surely do not exist here
-        config = real(name)
-        buses = tuple(
-            dataclasses.replace(b, default_port=str(tmp_path / f"tty_{b.name}"))
-            for b in config.buses
-        )
-        return dataclasses.replace(config, buses=buses)
-
-    monkeypatch.setattr(loader, "load_robot_config", missing_defaults)
+    tmp_path = missing_default_ports
     assert _run("--robot", "op3", "--cycles", "1") == 1
     out = capsys.readouterr().out
     assert f"{tmp_path / 'tty_main'} is the robot config's default port for bus main" in out

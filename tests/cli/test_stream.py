@@ -4,7 +4,6 @@ simulated Dynamixel bus (the bus must see the torque go off)."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import shutil
 import signal
@@ -183,23 +182,11 @@ def test_ports_use_the_bus_syntax_and_must_exist() -> None:
 
 
 def test_a_default_port_that_cannot_be_opened_says_where_it_came_from(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+    missing_default_ports: Path,
 ) -> None:
     """A bus no --port names opens the config's default_port: the error says so, not only
     "cannot open" a path the user never typed."""
-    import robot_retarget.robot.loader as loader
-
-    real = loader.load_robot_config
-
-    def missing_defaults(name: str) -> object:  # defaults that surely do not exist here
-        config = real(name)
-        buses = tuple(
-            dataclasses.replace(b, default_port=str(tmp_path / f"tty_{b.name}"))
-            for b in config.buses
-        )
-        return dataclasses.replace(config, buses=buses)
-
-    monkeypatch.setattr(loader, "load_robot_config", missing_defaults)
+    tmp_path = missing_default_ports
     clip = f"replay:{FIXTURES / 'tiny_walk.bvh'}"
     lower = tmp_path / "tty_lower_body"
     controller, terminal = os.openpty()  # a port upper_body can open

@@ -57,6 +57,10 @@ def markdown_table(report: EvalRobotReport) -> str:
             "… under the performer's planted feet (m/s)",
             [_fmt(s[m].planted_skate_m_s, 3) for m in METHODS],
         ),
+        (
+            "swing foot within 1 cm of the floor (share of swing frames)",
+            [_fmt(s[m].swing_scuff_share, 3) for m in METHODS],
+        ),
         ("solver fallbacks", [_fmt(s[m].fallbacks) for m in METHODS]),
         ("compute per frame (ms)", [_fmt(s[m].ms_per_frame, 3) for m in METHODS]),
     ]
@@ -134,6 +138,7 @@ def _summary_dict(s: MethodSummary) -> dict[str, Any]:
         "ms_per_frame": s.ms_per_frame,
         "foot_skate_m_s": s.foot_skate_m_s,
         "planted_skate_m_s": s.planted_skate_m_s,
+        "swing_scuff_share": s.swing_scuff_share,
     }
 
 
@@ -151,6 +156,7 @@ def report_dict(report: EvalRobotReport) -> dict[str, Any]:
                     "ee_mean": float(c.methods[m].ee.mean()),
                     "foot_skate_m_s": c.methods[m].foot_skate_m_s,
                     "planted_skate_m_s": c.methods[m].planted_skate_m_s,
+                    "swing_scuff_share": c.methods[m].swing_scuff_share,
                 }
                 for m in METHODS
             },

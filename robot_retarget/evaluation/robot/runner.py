@@ -74,6 +74,7 @@ from robot_retarget.pipeline.floating_base import (
     foot_skate_m_s,
     planted_feet,
     planted_skate_m_s,
+    swing_scuff_share,
     trajectory_feet,
 )
 from robot_retarget.robot.config import RobotConfig
@@ -128,7 +129,9 @@ class MethodClip:
     ``stats`` None for the kinematic limit (per-frame poses, not a trajectory);
     ``foot_skate_m_s``: how fast the robot's feet slide on the ground on its floating base
     (every frame; None for the limit); ``planted_skate_m_s``: the same for the feet the
-    performer stands on only (a swing foot skimming the floor left out)."""
+    performer stands on only (a swing foot skimming the floor left out);
+    ``swing_scuff_share``: the share of single-support swing frames whose lifted foot is
+    within 1 cm of the floor (None: the performer never stands on one foot)."""
 
     angles: FloatArray
     ee: FloatArray
@@ -137,6 +140,7 @@ class MethodClip:
     ms_per_frame: float
     foot_skate_m_s: float | None = None
     planted_skate_m_s: float | None = None
+    swing_scuff_share: float | None = None
 
 
 @dataclass(frozen=True)
@@ -167,6 +171,7 @@ class MethodSummary:
     ms_per_frame: float
     foot_skate_m_s: float | None = None
     planted_skate_m_s: float | None = None
+    swing_scuff_share: float | None = None
 
 
 @dataclass(frozen=True)
@@ -359,6 +364,7 @@ class RobotEvaluator:
                 c,
                 foot_skate_m_s=foot_skate_m_s(feet[m], rate),
                 planted_skate_m_s=planted_skate_m_s(feet[m], rate, planted),
+                swing_scuff_share=swing_scuff_share(self.config, feet[m], planted),
             )
             if m in feet
             else c
@@ -477,6 +483,7 @@ def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
             foot_skate_m_s=_weighted(w, [p.foot_skate_m_s for p in per]),
             # Clips where the performer never stands on a foot the robot has down say nothing.
             planted_skate_m_s=_weighted_present(w, [p.planted_skate_m_s for p in per]),
+            swing_scuff_share=_weighted_present(w, [p.swing_scuff_share for p in per]),
         )
     return out
 

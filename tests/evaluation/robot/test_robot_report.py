@@ -41,7 +41,7 @@ def test_table_has_every_metric_and_method(report: EvalRobotReport) -> None:
     assert lines[0] == (
         "| metric | pipeline | GMR-style IK | position-IK baseline | kinematic limit |"
     )
-    assert len(lines) == 2 + 5 + 14
+    assert len(lines) == 2 + 5 + 15
     assert all(line.count("|") == 6 for line in lines)
     assert "| joint-speed violations | 0 | 0 | 0 | — |" in lines
     assert any(line.startswith("| limb direction error, mean (°) |") for line in lines)

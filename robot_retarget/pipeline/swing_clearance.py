@@ -1,0 +1,255 @@
+"""Swing feet lifted off the floor: each foot at least as high as the performer's, scaled.
+
+A robot foot copies the performer's foot *angle*, and small humanoids have long feet: OP3's
+ankle-to-toe is 0.29 of its leg, a person's 0.16. So where a performer swings a foot pitched
+toe-down (30–50° in walking) a robot's toe dips twice as far below its ankle, and on CMU walks
+OP3's swing foot skimmed the floor (lowest point 0.4–1.0 cm, under 1 cm in 46–94 % of its
+single-support swing frames on 02_01, 06_01, 08_01) while the performer's scaled foot cleared
+1.3–1.8 cm. Its ankle rose as high as the performer's (3.2–3.8 cm against 1.4–3.1 cm, scaled):
+the legs are right; the foot's angle is what scrapes. (Its 0.02 direction weight also lets the
+smoothing terms hold the foot back, measured in the README; weighting it fully cost shin error
+and jerk.)
+
+So after the whole clip is solved and the floating base placed, each foot whose lowest point is
+below the performer's same-side foot height (the floating base's own height rule, per side:
+the lower of ankle and toe above their standing heights, scaled by the leg-length ratio) is
+turned about its ankle's pitch joint, by the smallest angle that lifts it there, or as far as
+the turn can (a flat foot under a low ankle). Only that joint moves, so every scored segment
+keeps its direction. The turns are smoothed over ``SMOOTH_S``, then held inside the joint's
+limits and its velocity limit, and the base is placed again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robot_retarget.array_types import FloatArray
+from robot_retarget.geometry import quaternion as quat
+from robot_retarget.motion.human_motion import HumanMotion
+from robot_retarget.optimize.bone_model import body_to_root
+from robot_retarget.pipeline.floating_base import (
+    FloatingBase,
+    floating_base,
+    foot_points,
+    foot_sides,
+    performer_foot_heights_m,
+    planted_feet,
+)
+from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.kinematics import RobotKinematics
+
+SMOOTH_S = 0.04  # Gaussian σ of the turns (5 frames at 125 Hz): no step where a lift starts
+MAX_TURN_RAD = 0.8  # the largest turn tried, either way (46°)
+PASSES = 3  # lift, place the base again, lift from there: at most this many times
+_STEPS = 41  # turns tried in [−MAX_TURN_RAD, MAX_TURN_RAD]: 2.3° apart
+_MOVES_M = 1e-6  # a joint moves a point when a 0.1 rad turn shifts it further than this
+
+
+@dataclass(frozen=True)
+class FootPitch:
+    """One foot: its pitch joint (index) and the foot points it carries (frame names)."""
+
+    joint: int
+    points: tuple[str, ...]
+
+
+def foot_pitch_joints(
+    config: RobotConfig, sides: dict[str, tuple[str, ...]], ankles: dict[str, str]
+) -> dict[str, FootPitch]:
+    """Per side, the joint that turns the foot points ``sides[side]`` about a lateral axis
+    without moving the ankle frame ``ankles[side]`` (the foot bone's start): of the joints that
+    move only the foot, the one whose axis at the zero pose lies closest to the robot's left."""
+    kin = RobotKinematics(config)
+    n = config.num_joints
+    # The zero pose, then each joint alone turned by 0.1 rad: one batched FK.
+    poses = np.vstack([np.zeros(n), 0.1 * np.eye(n)])
+    left = body_to_root(config)[:, 1]  # the robot's left, root frame
+    out: dict[str, FootPitch] = {}
+    for side, points in sides.items():
+        frames = [*points, ankles[side]]
+        pos = kin.frame_positions(poses, frames)
+        moved = np.linalg.norm(pos[1:] - pos[0], axis=-1)  # (J, P + 1)
+        rot = kin.frame_rotations(poses[0], [c.child_link for c in config.joints])
+        best, best_align = -1, 0.5  # an axis within 60° of lateral, else no pitch joint
+        for j, joint in enumerate(config.joints):
+            if moved[j, -1] > _MOVES_M or moved[j, :-1].max() <= _MOVES_M:
+                continue  # moves the ankle (a leg joint), or not the foot
+            align = abs(float(left @ rot[j] @ np.asarray(joint.axis, dtype=np.float64)))
+            if align > best_align:
+                best, best_align = j, align
+        if best >= 0:
+            out[side] = FootPitch(best, tuple(points))
+    return out
+
+
+def base_transforms(root_pos: npt.ArrayLike, root_quat: npt.ArrayLike) -> FloatArray:
+    """(T, 4, 4) the base link's pose in the world from positions (T, 3) and w-x-y-z (T, 4)."""
+    pos = np.asarray(root_pos, dtype=np.float64)
+    out = np.zeros((len(pos), 4, 4))
+    out[:, :3, :3] = quat.to_matrix(np.asarray(root_quat, dtype=np.float64))
+    out[:, :3, 3] = pos
+    out[:, 3, 3] = 1.0
+    return out
+
+
+def _rotate(points: FloatArray, axis: FloatArray, angle: FloatArray) -> FloatArray:
+    """``points`` (N, P, 3) turned about unit ``axis`` (N, 3) through the origin by ``angle``
+    (N, K): (N, K, P, 3) (Rodrigues)."""
+    c, s = np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
+    a = axis[:, None, None, :]
+    p = points[:, None, :, :]
+    along = np.sum(a * p, axis=-1, keepdims=True) * a
+    return np.asarray(c * p + s * np.cross(a, p) + (1.0 - c) * along, dtype=np.float64)
+
+
+def lift_turns(
+    kin: RobotKinematics,
+    q: FloatArray,
+    base: FloatArray,
+    foot: FootPitch,
+    axis_local: FloatArray,
+    child_link: str,
+    wanted_m: FloatArray,
+    lower: float,
+    upper: float,
+) -> FloatArray:
+    """(T,) per frame the turn of ``foot.joint`` (rad) that lifts the foot's lowest point to
+    ``wanted_m`` (T,) above the floor: the smallest that does, else the one that lifts it
+    most; 0 where it is high enough already. ``axis_local``: the joint's axis in its child
+    link ``child_link``, whose origin is on the axis."""
+    turns = np.zeros(len(q))
+    rot, pos = kin.frame_poses(q, [child_link, *foot.points], base)
+    low = pos[:, 1:, 2].min(axis=-1)
+    need = np.flatnonzero(low < wanted_m)
+    if need.size == 0:
+        return turns
+    tried = np.linspace(-MAX_TURN_RAD, MAX_TURN_RAD, _STEPS)
+    j = foot.joint
+    actual = np.clip(q[need, j, None] + tried, lower, upper) - q[need, j, None]  # (N, K)
+    axis = rot[need, 0] @ axis_local  # (N, 3) world
+    origin = pos[need, 0]
+    turned = _rotate(pos[need, 1:] - origin[:, None], axis, actual)  # (N, K, P, 3)
+    heights = turned[..., 2].min(axis=-1) + origin[:, None, 2]  # (N, K)
+    enough = heights >= wanted_m[need, None]
+    # The smallest turn that is enough; where none is, the one that lifts most.
+    size = np.where(enough, np.abs(actual), np.inf)
+    pick = np.where(enough.any(axis=1), size.argmin(axis=1), heights.argmax(axis=1))
+    rows = np.arange(len(need))
+    turns[need] = actual[rows, pick]
+    # A turn that does not lift the foot is none (the foot is as high as it gets).
+    turns[need[heights[rows, pick] <= low[need]]] = 0.0
+    return turns
+
+
+def smooth(turns: FloatArray, fps: float, sigma_s: float = SMOOTH_S) -> FloatArray:
+    """``turns`` (T,) under a Gaussian of σ ``sigma_s`` (edges held)."""
+    sigma = sigma_s * fps
+    if sigma < 0.5 or len(turns) < 2:
+        return turns.copy()
+    half = int(np.ceil(3.0 * sigma))
+    k = np.exp(-0.5 * (np.arange(-half, half + 1) / sigma) ** 2)
+    k /= k.sum()
+    padded = np.concatenate([np.full(half, turns[0]), turns, np.full(half, turns[-1])])
+    return np.asarray(np.convolve(padded, k, mode="valid"), dtype=np.float64)
+
+
+def within_speed(column: FloatArray, step: float) -> FloatArray:
+    """``column`` (T,) with no frame-to-frame change above ``step``: a backward then a forward
+    pass (the forward pass makes it hold; the backward one starts a rise in time)."""
+    out = [float(v) for v in column]
+    for t in range(len(out) - 2, -1, -1):
+        out[t] = min(max(out[t], out[t + 1] - step), out[t + 1] + step)
+    for t in range(1, len(out)):
+        out[t] = min(max(out[t], out[t - 1] - step), out[t - 1] + step)
+    return np.array(out, dtype=np.float64)
+
+
+def lift_swing_feet(
+    config: RobotConfig,
+    q: npt.ArrayLike,
+    root_pos: npt.ArrayLike,
+    root_quat: npt.ArrayLike,
+    wanted_m: dict[str, FloatArray],
+    feet: dict[str, FootPitch],
+    fps: float,
+) -> FloatArray:
+    """Joint angles (T, J) with each foot in ``feet`` turned about its pitch joint so that its
+    lowest point is at least ``wanted_m[side]`` (T,) above the floor (module docstring), inside
+    the joint's limits and velocity limit at ``fps``. The base (``root_pos``, ``root_quat``)
+    is the one the feet were measured on; place it again afterwards."""
+    out = np.array(q, dtype=np.float64)
+    if len(out) == 0:
+        return out
+    kin = RobotKinematics(config)
+    base = base_transforms(root_pos, root_quat)
+    step = np.asarray(config.max_velocity, dtype=np.float64) / fps
+    lower = np.asarray(config.lower, dtype=np.float64)
+    upper = np.asarray(config.upper, dtype=np.float64)
+    for side, foot in feet.items():
+        j = foot.joint
+        joint = config.joints[j]
+        axis = np.asarray(joint.axis, dtype=np.float64)
+        axis = axis / np.linalg.norm(axis)
+        turns = lift_turns(
+            kin, out, base, foot, axis, joint.child_link, wanted_m[side], lower[j], upper[j]
+        )
+        if not turns.any():
+            continue
+        column = np.clip(out[:, j] + smooth(turns, fps), lower[j], upper[j])
+        # The clip's own speeds stay as they were where nothing was turned; a lift must not
+        # make the joint faster than its limit (nor than it already was).
+        limit = max(float(step[j]), float(np.abs(np.diff(out[:, j])).max(initial=0.0)))
+        out[:, j] = np.clip(within_speed(column, limit), lower[j], upper[j])
+    return out
+
+
+def robot_foot_pitches(config: RobotConfig) -> dict[str, FootPitch]:
+    """Per side, the robot's foot pitch joint and foot points (empty: the robot maps no foot
+    bone with an ankle frame, or has no such joint)."""
+    ankles = {
+        b.canonical.removesuffix("Foot"): b.start_frame
+        for b in config.bones
+        if b.canonical in ("LeftFoot", "RightFoot")
+    }
+    sides = {s: p for s, p in foot_sides(config).items() if s in ankles}
+    return foot_pitch_joints(config, sides, ankles) if sides else {}
+
+
+def clear_swing_feet(
+    config: RobotConfig,
+    motion: HumanMotion,
+    q: npt.ArrayLike,
+    *,
+    trunk_frames: npt.ArrayLike | None = None,
+) -> tuple[FloatArray, FloatingBase]:
+    """Joint angles (T, J) retargeted from ``motion`` (T frames at the same rate) with the swing
+    feet lifted (module docstring), and the floating base placed for them."""
+    base = floating_base(config, motion, q, trunk_frames=trunk_frames)
+    feet = robot_foot_pitches(config)
+    if not feet:
+        return np.array(q, dtype=np.float64), base
+    # Only a foot the performer has lifted: one they stand on is the base's (its pinning).
+    heights = performer_foot_heights_m(config, motion)
+    planted = planted_feet(config, motion.positions(), motion.fps)
+    columns = foot_points(config)  # planted's columns
+    wanted = {
+        side: np.where(planted[:, columns.index(foot.points[0])], -np.inf, heights[side])
+        for side, foot in feet.items()
+    }
+    lifted = np.array(q, dtype=np.float64)
+    # A swing foot that dipped below the stance foot held the whole robot up (the base puts the
+    # lowest point on the floor); lifted, the base comes down, and the foot is lifted again
+    # from there (CMU 02_01: 0.65 of swing frames within 1 cm of the floor unlifted; one pass
+    # 0.47, two 0.24, three 0.23).
+    for _ in range(PASSES):
+        again = lift_swing_feet(
+            config, lifted, base.root_pos, base.root_quat, wanted, feet, motion.fps
+        )
+        if np.array_equal(again, lifted):
+            break
+        lifted = again
+        base = floating_base(config, motion, lifted, trunk_frames=trunk_frames)
+    return lifted, base
