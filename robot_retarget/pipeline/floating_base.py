@@ -309,6 +309,14 @@ def swing_scuff_share(
     floor: a swing foot that would scrape. ``feet`` (T, F, 3) world and ``planted`` (T, F)
     (:func:`planted_feet`) in :func:`foot_points` order; None when the performer never stands
     on one foot."""
+    scrapes, swings = swing_scuffs(config, feet, planted, contact_m)
+    return scrapes / swings if swings else None
+
+
+def swing_scuffs(
+    config: RobotConfig, feet: npt.ArrayLike, planted: npt.ArrayLike, contact_m: float = CONTACT_M
+) -> tuple[int, int]:
+    """(scraping, all) single-support swing frames, per foot (:func:`swing_scuff_share`)."""
     f = np.asarray(feet, dtype=np.float64)
     down = np.asarray(planted, dtype=bool)
     sides = _frame_sides(config, foot_points(config))
@@ -321,7 +329,7 @@ def swing_scuff_share(
         swing = ~down[:, own].any(axis=1) & down[:, other].any(axis=1)
         swings += int(swing.sum())
         scrapes += int((f[swing][:, own, 2].min(axis=1) <= contact_m).sum())
-    return scrapes / swings if swings else None
+    return scrapes, swings
 
 
 def _sliding(feet: FloatArray, fps: float, down: npt.NDArray[np.bool_]) -> float | None:

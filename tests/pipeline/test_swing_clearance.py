@@ -16,6 +16,7 @@ from robot_retarget.pipeline.defaults import default_model_name
 from robot_retarget.pipeline.floating_base import (
     planted_feet,
     swing_scuff_share,
+    swing_scuffs,
     trajectory_feet,
 )
 from robot_retarget.pipeline.step import RetargetStep
@@ -118,6 +119,7 @@ def test_swing_scuff_share_counts_single_support_swing_frames() -> None:
     planted = np.zeros((4, 6), dtype=bool)
     planted[:, [1, 3, 5]] = True  # the performer stands on the right foot throughout
     assert swing_scuff_share(OP3, feet, planted) == pytest.approx(0.5)
+    assert swing_scuffs(OP3, feet, planted) == (2, 4)
     assert swing_scuff_share(OP3, feet, np.zeros((4, 6), dtype=bool)) is None
 
 

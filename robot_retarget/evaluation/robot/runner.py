@@ -74,7 +74,7 @@ from robot_retarget.pipeline.floating_base import (
     foot_skate_m_s,
     planted_feet,
     planted_skate_m_s,
-    swing_scuff_share,
+    swing_scuffs,
     trajectory_feet,
 )
 from robot_retarget.robot.config import RobotConfig
@@ -130,8 +130,8 @@ class MethodClip:
     ``foot_skate_m_s``: how fast the robot's feet slide on the ground on its floating base
     (every frame; None for the limit); ``planted_skate_m_s``: the same for the feet the
     performer stands on only (a swing foot skimming the floor left out);
-    ``swing_scuff_share``: the share of single-support swing frames whose lifted foot is
-    within 1 cm of the floor (None: the performer never stands on one foot)."""
+    ``swing_scuffs``: (scraping, all) single-support swing foot-frames, a scraping one's lifted
+    foot within 1 cm of the floor (:func:`.floating_base.swing_scuffs`)."""
 
     angles: FloatArray
     ee: FloatArray
@@ -140,7 +140,14 @@ class MethodClip:
     ms_per_frame: float
     foot_skate_m_s: float | None = None
     planted_skate_m_s: float | None = None
-    swing_scuff_share: float | None = None
+    swing_scuffs: tuple[int, int] | None = None
+
+    @property
+    def swing_scuff_share(self) -> float | None:
+        """The share of this clip's swing frames that scrape (None: none measured)."""
+        if self.swing_scuffs is None or self.swing_scuffs[1] == 0:
+            return None
+        return self.swing_scuffs[0] / self.swing_scuffs[1]
 
 
 @dataclass(frozen=True)
@@ -364,7 +371,7 @@ class RobotEvaluator:
                 c,
                 foot_skate_m_s=foot_skate_m_s(feet[m], rate),
                 planted_skate_m_s=planted_skate_m_s(feet[m], rate, planted),
-                swing_scuff_share=swing_scuff_share(self.config, feet[m], planted),
+                swing_scuffs=swing_scuffs(self.config, feet[m], planted),
             )
             if m in feet
             else c
@@ -483,7 +490,8 @@ def summarize(clips: Sequence[ClipScores]) -> dict[str, MethodSummary]:
             foot_skate_m_s=_weighted(w, [p.foot_skate_m_s for p in per]),
             # Clips where the performer never stands on a foot the robot has down say nothing.
             planted_skate_m_s=_weighted_present(w, [p.planted_skate_m_s for p in per]),
-            swing_scuff_share=_weighted_present(w, [p.swing_scuff_share for p in per]),
+            # Pooled over swing frames: a clip with a few single-support frames counts as few.
+            swing_scuff_share=_pooled_share([p.swing_scuffs for p in per]),
         )
     return out
 
@@ -493,6 +501,13 @@ def _weighted_present(w: FloatArray, values: Sequence[float | None]) -> float | 
     present = [(wi, v) for wi, v in zip(w, values, strict=True) if v is not None]
     total = sum(wi for wi, _ in present)
     return float(sum(wi * v for wi, v in present) / total) if present and total > 0 else None
+
+
+def _pooled_share(counts: Sequence[tuple[int, int] | None]) -> float | None:
+    """Σ hits / Σ frames over the clips that have counts (None: no frames at all)."""
+    present = [c for c in counts if c is not None]
+    total = sum(n for _, n in present)
+    return sum(k for k, _ in present) / total if total else None
 
 
 def _weighted(w: FloatArray, values: Sequence[float | None]) -> float | None:
