@@ -33,6 +33,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     add_foot_lock_argument(parser)
     parser.add_argument(
+        "--feet-as-solved",
+        action="store_true",
+        help="score the pipeline with its swing feet as solved, not lifted to the performer's "
+        "height (as stream sends them; convert lifts them)",
+    )
+    parser.add_argument(
         "--val-subjects",
         default=None,
         help="comma-separated subjects (default: the training split's validation subjects)",
@@ -140,6 +146,11 @@ def run(args: argparse.Namespace) -> int:
             "eval-robot: --keypoint-model, --clip-keypoint-model and --no-image-planes are "
             "about the 2D keypoint rows; add --input 2d"
         )
+    if args.feet_as_solved and args.corrupt is not None:
+        raise SystemExit(
+            "eval-robot: --feet-as-solved is about the clip rows; the --corrupt runs play "
+            "through the control loop, which sends the feet as solved already"
+        )
     if args.raw_positions and args.corrupt is None:
         raise SystemExit(
             "eval-robot: --raw-positions is about the live source of --corrupt; add --corrupt"
@@ -204,7 +215,12 @@ def run(args: argparse.Namespace) -> int:
             clips,
             oracle_runner(config)
             if model == ORACLE_MODEL
-            else pipeline_runner(config, model, foot_lock=args.foot_lock),
+            else pipeline_runner(
+                config,
+                model,
+                foot_lock=args.foot_lock,
+                lift_swing_feet=not args.feet_as_solved,
+            ),
             settings,
             model_name=_label(model, args),
             progress=progress,
@@ -269,7 +285,9 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
         clip_keypoint_model=stream_model
         if args.keypoint_model and not args.clip_keypoint_model
         else load_keypoint_model(args.clip_keypoint_model, whole_clip=True),
-        pipeline=pipeline_runner(config, model, foot_lock=args.foot_lock),
+        pipeline=pipeline_runner(
+            config, model, foot_lock=args.foot_lock, lift_swing_feet=not args.feet_as_solved
+        ),
         stream_pipeline=pipeline_runner(
             config, model, foot_lock=args.foot_lock, whole_clip_branches=False
         ),
@@ -300,4 +318,5 @@ def _label(model: str, args: argparse.Namespace) -> str:
     """The model as the report names it: with its foot lock when ``--foot-lock`` ran it, and
     the ``--set`` overrides it ran with (so a saved report says how it differs)."""
     label = f"{model} + foot lock" if args.foot_lock else str(model)
+    label = f"{label}, feet as solved" if args.feet_as_solved else label
     return f"{label} (--set {' '.join(args.set)})" if args.set else label

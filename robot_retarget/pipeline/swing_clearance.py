@@ -42,7 +42,7 @@ from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.kinematics import RobotKinematics
 
 SMOOTH_S = 0.04  # Gaussian σ of the turns (5 frames at 125 Hz): no step where a lift starts
-MAX_TURN_RAD = 0.8  # the largest turn tried, either way (46°)
+MAX_TURN_RAD = 0.8  # the largest turn of a foot from its solved angle, either way (46°)
 PASSES = 3  # lift, place the base again, lift from there: at most this many times
 _STEPS = 41  # turns tried in [−MAX_TURN_RAD, MAX_TURN_RAD]: 2.3° apart
 _MOVES_M = 1e-6  # a joint moves a point when a 0.1 rad turn shifts it further than this
@@ -61,25 +61,33 @@ def foot_pitch_joints(
 ) -> dict[str, FootPitch]:
     """Per side, the joint that turns the foot points ``sides[side]`` about a lateral axis
     without moving the ankle frame ``ankles[side]`` (the foot bone's start): of the joints that
-    move only the foot, the one whose axis at the zero pose lies closest to the robot's left."""
+    move only the foot and whose axis at the zero pose is within 60° of the robot's left, the
+    one that moves most of its points, then most of the robot's frames (an ankle, not a toe
+    joint below it), then the most lateral."""
     kin = RobotKinematics(config)
     n = config.num_joints
     # The zero pose, then each joint alone turned by 0.1 rad: one batched FK.
     poses = np.vstack([np.zeros(n), 0.1 * np.eye(n)])
     left = body_to_root(config)[:, 1]  # the robot's left, root frame
+    every = kin.frame_positions(poses)
+    carried = (np.linalg.norm(every[1:] - every[0], axis=-1) > _MOVES_M).sum(axis=1)  # (J,)
     out: dict[str, FootPitch] = {}
     for side, points in sides.items():
         frames = [*points, ankles[side]]
         pos = kin.frame_positions(poses, frames)
         moved = np.linalg.norm(pos[1:] - pos[0], axis=-1)  # (J, P + 1)
         rot = kin.frame_rotations(poses[0], [c.child_link for c in config.joints])
-        best, best_align = -1, 0.5  # an axis within 60° of lateral, else no pitch joint
+        # Of the joints with an axis within 60° of lateral: the one that turns most foot
+        # points, then most of the robot's frames (an ankle before a toe joint below it),
+        # then the most lateral.
+        best, best_key = -1, (0, 0, 0.0)
         for j, joint in enumerate(config.joints):
             if moved[j, -1] > _MOVES_M or moved[j, :-1].max() <= _MOVES_M:
                 continue  # moves the ankle (a leg joint), or not the foot
             align = abs(float(left @ rot[j] @ np.asarray(joint.axis, dtype=np.float64)))
-            if align > best_align:
-                best, best_align = j, align
+            key = (int((moved[j, :-1] > _MOVES_M).sum()), int(carried[j]), align)
+            if align > 0.5 and key > best_key:
+                best, best_key = j, key
         if best >= 0:
             out[side] = FootPitch(best, tuple(points))
     return out
@@ -156,15 +164,28 @@ def smooth(turns: FloatArray, fps: float, sigma_s: float = SMOOTH_S) -> FloatArr
     return np.asarray(np.convolve(padded, k, mode="valid"), dtype=np.float64)
 
 
-def within_speed(column: FloatArray, step: float) -> FloatArray:
-    """``column`` (T,) with no frame-to-frame change above ``step``: a backward then a forward
-    pass (the forward pass makes it hold; the backward one starts a rise in time)."""
-    out = [float(v) for v in column]
-    for t in range(len(out) - 2, -1, -1):
-        out[t] = min(max(out[t], out[t + 1] - step), out[t + 1] + step)
+def _cone(values: FloatArray, mask: npt.NDArray[np.bool_], slope: float, sign: float) -> FloatArray:
+    """The least function (``sign`` 1; the greatest for -1) that is at least (at most)
+    ``values`` where ``mask`` and changes by at most ``slope`` a frame: ``values[s] - slope·|t -
+    s|`` maximised over the masked frames s (-inf / +inf where there are none)."""
+    out = [sign * float(v) if m else -np.inf for v, m in zip(values, mask, strict=True)]
     for t in range(1, len(out)):
-        out[t] = min(max(out[t], out[t - 1] - step), out[t - 1] + step)
-    return np.array(out, dtype=np.float64)
+        out[t] = max(out[t], out[t - 1] - slope)
+    for t in range(len(out) - 2, -1, -1):
+        out[t] = max(out[t], out[t + 1] - slope)
+    return sign * np.array(out, dtype=np.float64)
+
+
+def held_turns(column: FloatArray, turns: FloatArray, step: float) -> FloatArray:
+    """``column`` (T,) turned by ``turns`` (T,) where they are not 0, and no further than it
+    must be elsewhere to get there and back within ``step`` a frame: at least ``column +
+    turns`` where a turn is positive, at most where negative, ``column`` itself where neither
+    needs it. Each frame changes by at most ``step`` or by what ``column`` itself changes there,
+    whichever is more (the max and min of such functions)."""
+    target = column + turns
+    up = _cone(target, turns > 0.0, step, 1.0)
+    down = _cone(target, turns < 0.0, step, -1.0)
+    return np.asarray(np.minimum(np.maximum(column, up), down), dtype=np.float64)
 
 
 def lift_swing_feet(
@@ -175,14 +196,19 @@ def lift_swing_feet(
     wanted_m: dict[str, FloatArray],
     feet: dict[str, FootPitch],
     fps: float,
+    *,
+    solved: npt.ArrayLike | None = None,
 ) -> FloatArray:
     """Joint angles (T, J) with each foot in ``feet`` turned about its pitch joint so that its
     lowest point is at least ``wanted_m[side]`` (T,) above the floor (module docstring), inside
-    the joint's limits and velocity limit at ``fps``. The base (``root_pos``, ``root_quat``)
-    is the one the feet were measured on; place it again afterwards."""
+    the joint's limits, at most ``MAX_TURN_RAD`` from ``solved`` (the angles as solved, before
+    any lift; default ``q``), and no faster than its velocity limit at ``fps`` where ``q`` was
+    not. The base (``root_pos``, ``root_quat``) is the one the feet were measured on; place it
+    again afterwards."""
     out = np.array(q, dtype=np.float64)
     if len(out) == 0:
         return out
+    start = out.copy() if solved is None else np.asarray(solved, dtype=np.float64)
     kin = RobotKinematics(config)
     base = base_transforms(root_pos, root_quat)
     step = np.asarray(config.max_velocity, dtype=np.float64) / fps
@@ -198,11 +224,10 @@ def lift_swing_feet(
         )
         if not turns.any():
             continue
-        column = np.clip(out[:, j] + smooth(turns, fps), lower[j], upper[j])
-        # The clip's own speeds stay as they were where nothing was turned; a lift must not
-        # make the joint faster than its limit (nor than it already was).
-        limit = max(float(step[j]), float(np.abs(np.diff(out[:, j])).max(initial=0.0)))
-        out[:, j] = np.clip(within_speed(column, limit), lower[j], upper[j])
+        column = held_turns(out[:, j], smooth(turns, fps), float(step[j]))
+        # Clamps to bands that are themselves within the speed limit keep it there.
+        column = np.clip(column, start[:, j] - MAX_TURN_RAD, start[:, j] + MAX_TURN_RAD)
+        out[:, j] = np.clip(column, lower[j], upper[j])
     return out
 
 
@@ -246,7 +271,7 @@ def clear_swing_feet(
     # 0.47, two 0.24, three 0.23).
     for _ in range(PASSES):
         again = lift_swing_feet(
-            config, lifted, base.root_pos, base.root_quat, wanted, feet, motion.fps
+            config, lifted, base.root_pos, base.root_quat, wanted, feet, motion.fps, solved=q
         )
         if np.array_equal(again, lifted):
             break

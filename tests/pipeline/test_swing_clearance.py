@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -102,14 +103,84 @@ def test_lifting_never_leaves_limits_or_speed(seed: int, wanted_m: float) -> Non
     assert np.all(np.abs(np.diff(out, axis=0)) <= step + 1e-12)
 
 
-def test_within_speed_and_smooth() -> None:
-    column = np.array([0.0, 0.0, 1.0, 1.0, 0.0, 0.0])
-    limited = sc.within_speed(column, 0.25)
-    assert np.all(np.abs(np.diff(limited)) <= 0.25 + 1e-12)
+def test_a_turn_is_held_where_it_is_needed_and_reached_within_the_speed_limit() -> None:
+    column = np.zeros(15)
+    turns = np.r_[np.zeros(6), np.ones(3), np.zeros(6)]
+    held = sc.held_turns(column, turns, 0.25)
+    assert np.all(held[6:9] >= 1.0)  # the whole turn wherever it is needed
+    assert held[2] == 0.0  # reached from 0 in four steps of 0.25, no earlier
+    assert np.all(np.abs(np.diff(held)) <= 0.25 + 1e-12)
+    assert held[0] == 0.0
+    assert held[-1] == 0.0
+    # A negative turn is held the other way; the column elsewhere is left as it is.
+    assert np.all(sc.held_turns(column, -turns, 0.25)[6:9] <= -1.0)
     smoothed = sc.smooth(np.r_[np.zeros(20), np.ones(20)], 125.0)
     assert np.all(np.diff(smoothed) >= 0.0)
     assert smoothed[0] == 0.0
     assert smoothed[-1] == pytest.approx(1.0)
+
+
+def test_a_lift_is_no_faster_than_the_limit_where_the_clip_was_not() -> None:
+    """A clip at 30 Hz that itself jumps once (3 steps' worth, frame 70): the lift in frames
+    20-40 moves at most one step a frame, wherever it starts or ends."""
+    frames, fps = 100, 30.0
+    q, pos, rot = _toe_down(frames, 0.6, 0.002)
+    j = [jc.name for jc in OP3.joints].index("l_ank_pitch")
+    step = OP3.max_velocity[j] / fps
+    q[70:, j] -= 3.0 * step
+    wanted = np.full(frames, -np.inf)
+    wanted[20:40] = 0.02
+    out = sc.lift_swing_feet(
+        OP3, q, pos, rot, {"Left": wanted}, {"Left": sc.robot_foot_pitches(OP3)["Left"]}, fps
+    )
+    bound = np.maximum(step, np.abs(np.diff(q[:, j])))
+    assert np.all(np.abs(np.diff(out[:, j])) <= bound + 1e-12)
+    assert np.abs(out[:, j] - q[:, j]).max() > 0.1  # it did lift
+
+
+def test_the_total_turn_from_the_solved_angle_is_capped() -> None:
+    frames = 20
+    solved, pos, rot = _toe_down(frames, 0.3, 0.002)
+    j = [jc.name for jc in OP3.joints].index("l_ank_pitch")
+    q = solved.copy()
+    q[:, j] -= 0.7  # an earlier pass turned it already (the wrong way: further down)
+    wanted = {"Left": np.full(frames, 0.2), "Right": np.full(frames, -np.inf)}
+    out = sc.lift_swing_feet(
+        OP3, q, pos, rot, wanted, sc.robot_foot_pitches(OP3), 125.0, solved=solved
+    )
+    assert np.abs(out[:, j] - solved[:, j]).max() <= sc.MAX_TURN_RAD + 1e-12
+
+
+def test_an_ankle_is_chosen_over_a_toe_joint_listed_before_it() -> None:
+    """A toe joint at the ball of OP3's left foot, with the same lateral axis, carrying the toe
+    point (so the toe is the foot's only point) and listed first: the ankle, which turns more
+    of the robot, is still the pitch joint."""
+    pitch = next(jc for jc in OP3.joints if jc.name == "l_ank_pitch")
+    toe = next(f for f in OP3.frames if f.name == "l_toe")
+    toe_joint = dataclasses.replace(
+        pitch,
+        name="l_toe_pitch",
+        parent_link=toe.parent_link,
+        child_link="l_toe_link",
+        origin_xyz=(toe.origin_xyz[0] - 0.04, toe.origin_xyz[1], toe.origin_xyz[2]),
+        origin_rpy=(0.0, 0.0, 0.0),
+        servo_id=99,
+    )
+    frames = tuple(
+        dataclasses.replace(f, parent_link="l_toe_link", origin_xyz=(0.04, 0.0, 0.0))
+        if f.name == "l_toe"
+        else f
+        for f in OP3.frames
+    )
+    config = dataclasses.replace(
+        OP3,
+        joints=(toe_joint, *OP3.joints),
+        frames=frames,
+        init_pose=np.r_[0.0, OP3.init_pose],
+        safe_pose=np.r_[0.0, OP3.safe_pose],
+    )
+    feet = sc.robot_foot_pitches(config)
+    assert config.joints[feet["Left"].joint].name == "l_ank_pitch"
 
 
 def test_swing_scuff_share_counts_single_support_swing_frames() -> None:

@@ -92,16 +92,28 @@ def test_foot_lock_reaches_the_pipeline_and_the_report(
 ) -> None:
     from robot_retarget.evaluation.robot import runner
 
-    asked: list[bool] = []
+    asked: list[dict[str, Any]] = []
     real = runner.pipeline_runner
 
-    def recording(config: Any, model: str, *, foot_lock: bool = False) -> Any:
-        asked.append(foot_lock)
-        return real(config, model, foot_lock=foot_lock)
+    def recording(config: Any, model: str, **options: Any) -> Any:
+        asked.append(options)
+        return real(config, model, **options)
 
     monkeypatch.setattr(runner, "pipeline_runner", recording)
     args = _args("--data", str(shared_data_dir / "mocap"), "--val-subjects", "12",
                  "--max-frames", "40", "--json", "--cache-dir", "none", "--foot-lock")  # fmt: skip
     assert eval_robot_cmd.run(args) == 0
-    assert asked == [True]
+    assert asked == [{"foot_lock": True, "lift_swing_feet": True}]
     assert json.loads(capsys.readouterr().out)["model"] == "default + foot lock"
+    asked.clear()
+    args = _args("--data", str(shared_data_dir / "mocap"), "--val-subjects", "12",
+                 "--max-frames", "40", "--json", "--cache-dir", "none",
+                 "--feet-as-solved")  # fmt: skip
+    assert eval_robot_cmd.run(args) == 0
+    assert asked == [{"foot_lock": False, "lift_swing_feet": False}]
+    assert json.loads(capsys.readouterr().out)["model"] == "default, feet as solved"
+
+
+def test_feet_as_solved_is_refused_with_corrupt() -> None:
+    with pytest.raises(SystemExit, match="--feet-as-solved is about the clip rows"):
+        eval_robot_cmd.run(_args("--corrupt", "jitter", "--feet-as-solved"))
