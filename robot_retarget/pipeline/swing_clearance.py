@@ -176,16 +176,28 @@ def _cone(values: FloatArray, mask: npt.NDArray[np.bool_], slope: float, sign: f
     return sign * np.array(out, dtype=np.float64)
 
 
-def held_turns(column: FloatArray, turns: FloatArray, step: float) -> FloatArray:
+def held_turns(
+    column: FloatArray,
+    turns: FloatArray,
+    step: float,
+    kept: npt.NDArray[np.bool_] | None = None,
+) -> FloatArray:
     """``column`` (T,) turned by ``turns`` (T,) where they are not 0, and no further than it
     must be elsewhere to get there and back within ``step`` a frame: at least ``column +
     turns`` where a turn is positive, at most where negative, ``column`` itself where neither
-    needs it. Each frame changes by at most ``step`` or by what ``column`` itself changes there,
-    whichever is more (the max and min of such functions)."""
+    needs it, and exactly ``column`` in the ``kept`` frames (a foot the performer stands on:
+    a turn there would tip it onto its toes or heel), which win where the two meet. Each frame
+    changes by at most ``step`` or by what ``column`` itself changes there, whichever is more
+    (max, min and clip of such functions)."""
     target = column + turns
     up = _cone(target, turns > 0.0, step, 1.0)
     down = _cone(target, turns < 0.0, step, -1.0)
-    return np.asarray(np.minimum(np.maximum(column, up), down), dtype=np.float64)
+    out = np.minimum(np.maximum(column, up), down)
+    if kept is not None and kept.any():
+        below = _cone(column, kept, step, 1.0)  # the lowest a frame may be and reach them
+        above = _cone(column, kept, step, -1.0)
+        out = np.minimum(np.maximum(out, below), above)
+    return np.asarray(out, dtype=np.float64)
 
 
 def lift_swing_feet(
@@ -198,13 +210,14 @@ def lift_swing_feet(
     fps: float,
     *,
     solved: npt.ArrayLike | None = None,
+    planted: dict[str, npt.NDArray[np.bool_]] | None = None,
 ) -> FloatArray:
     """Joint angles (T, J) with each foot in ``feet`` turned about its pitch joint so that its
     lowest point is at least ``wanted_m[side]`` (T,) above the floor (module docstring), inside
     the joint's limits, at most ``MAX_TURN_RAD`` from ``solved`` (the angles as solved, before
     any lift; default ``q``), and no faster than its velocity limit at ``fps`` where ``q`` was
-    not. The base (``root_pos``, ``root_quat``) is the one the feet were measured on; place it
-    again afterwards."""
+    not; unturned in the frames ``planted[side]`` (T,). The base (``root_pos``, ``root_quat``)
+    is the one the feet were measured on; place it again afterwards."""
     out = np.array(q, dtype=np.float64)
     if len(out) == 0:
         return out
@@ -224,7 +237,8 @@ def lift_swing_feet(
         )
         if not turns.any():
             continue
-        column = held_turns(out[:, j], smooth(turns, fps), float(step[j]))
+        kept = None if planted is None else planted.get(side)
+        column = held_turns(out[:, j], smooth(turns, fps), float(step[j]), kept)
         # Clamps to bands that are themselves within the speed limit keep it there.
         column = np.clip(column, start[:, j] - MAX_TURN_RAD, start[:, j] + MAX_TURN_RAD)
         out[:, j] = np.clip(column, lower[j], upper[j])
@@ -260,10 +274,8 @@ def clear_swing_feet(
     heights = performer_foot_heights_m(config, motion)
     planted = planted_feet(config, motion.positions(), motion.fps)
     columns = foot_points(config)  # planted's columns
-    wanted = {
-        side: np.where(planted[:, columns.index(foot.points[0])], -np.inf, heights[side])
-        for side, foot in feet.items()
-    }
+    standing = {side: planted[:, columns.index(foot.points[0])] for side, foot in feet.items()}
+    wanted = {side: np.where(standing[side], -np.inf, heights[side]) for side in feet}
     lifted = np.array(q, dtype=np.float64)
     # A swing foot that dipped below the stance foot held the whole robot up (the base puts the
     # lowest point on the floor); lifted, the base comes down, and the foot is lifted again
@@ -271,7 +283,15 @@ def clear_swing_feet(
     # 0.47, two 0.24, three 0.23).
     for _ in range(PASSES):
         again = lift_swing_feet(
-            config, lifted, base.root_pos, base.root_quat, wanted, feet, motion.fps, solved=q
+            config,
+            lifted,
+            base.root_pos,
+            base.root_quat,
+            wanted,
+            feet,
+            motion.fps,
+            solved=q,
+            planted=standing,
         )
         if np.array_equal(again, lifted):
             break

@@ -114,6 +114,13 @@ def test_a_turn_is_held_where_it_is_needed_and_reached_within_the_speed_limit() 
     assert held[-1] == 0.0
     # A negative turn is held the other way; the column elsewhere is left as it is.
     assert np.all(sc.held_turns(column, -turns, 0.25)[6:9] <= -1.0)
+    # Frames kept as they are (a planted foot) win: the turn ramps within the others.
+    kept = np.r_[np.ones(5, dtype=bool), np.zeros(10, dtype=bool)]
+    held = sc.held_turns(column, turns, 0.25, kept)
+    assert np.all(held[:5] == 0.0)
+    assert held[5] == 0.25
+    assert held[6] == 0.5
+    assert np.all(np.abs(np.diff(held)) <= 0.25 + 1e-12)
     smoothed = sc.smooth(np.r_[np.zeros(20), np.ones(20)], 125.0)
     assert np.all(np.diff(smoothed) >= 0.0)
     assert smoothed[0] == 0.0
