@@ -1,22 +1,25 @@
 """Swing feet lifted off the floor: each foot at least as high as the performer's, scaled.
 
 A robot foot copies the performer's foot *angle*, and small humanoids have long feet: OP3's
-ankle-to-toe is 0.29 of its leg, a person's 0.16. So where a performer swings a foot pitched
-toe-down (30–50° in walking) a robot's toe dips twice as far below its ankle, and on CMU walks
-OP3's swing foot skimmed the floor (lowest point 0.4–1.0 cm, under 1 cm in 46–94 % of its
-single-support swing frames on 02_01, 06_01, 08_01) while the performer's scaled foot cleared
-1.3–1.8 cm. Its ankle rose as high as the performer's (3.2–3.8 cm against 1.4–3.1 cm, scaled):
-the legs are right; the foot's angle is what scrapes. (Its 0.02 direction weight also lets the
-smoothing terms hold the foot back, measured in the README; weighting it fully cost shin error
-and jerk.)
+ankle-to-toe is 0.29 of its leg, a person's 0.16. Where a performer swings a foot pitched
+toe-down (the CMU ankle-to-toe line 41–53° below level in swing) the robot's lowest foot point
+hangs 6.1–6.8 cm below its ankle (3.1 cm with the sole flat), and on CMU walks OP3's swing
+foot skimmed the floor (lowest point 0.4–1.1 cm at the median per foot, under 1 cm in 42–94 %
+of the single-support swing frames of 02_01, 06_01, 08_01) while its ankle rose as high as the
+performer's, scaled (3.2–3.8 cm against 1.4–3.1 cm): the legs are right; the foot's angle is
+what scrapes. (Weighting the foot's direction more, or damping the ankles less, in the solve
+cost shin error or jerk: README, "Swing feet".)
 
-So after the whole clip is solved and the floating base placed, each foot whose lowest point is
-below the performer's same-side foot height (the floating base's own height rule, per side:
-the lower of ankle and toe above their standing heights, scaled by the leg-length ratio) is
-turned about its ankle's pitch joint, by the smallest angle that lifts it there, or as far as
-the turn can (a flat foot under a low ankle). Only that joint moves, so every scored segment
-keeps its direction. The turns are smoothed over ``SMOOTH_S``, then held inside the joint's
-limits and its velocity limit, and the base is placed again.
+So after the whole clip is solved and the floating base placed, each foot the performer has
+lifted whose lowest point is below the performer's same-side foot height (the floating base's
+own height rule, per side: the lower of ankle and toe above their standing heights, scaled by
+the leg-length ratio) is turned about its ankle's pitch joint by the smallest angle that lifts
+it there, or as far as a turn can (a flat foot under a low ankle). Only that joint moves, so
+every scored segment keeps its direction. The turns are smoothed over ``SMOOTH_S`` and held
+where needed, reached and left within the joint's velocity limit inside the lifted frames (a
+foot the performer stands on is never turned), at most ``MAX_TURN_RAD`` from the solved angle
+and inside the joint's limits; then the base is placed again, and the feet lifted again from
+there (``PASSES``).
 """
 
 from __future__ import annotations
@@ -280,7 +283,7 @@ def clear_swing_feet(
     # A swing foot that dipped below the stance foot held the whole robot up (the base puts the
     # lowest point on the floor); lifted, the base comes down, and the foot is lifted again
     # from there (CMU 02_01: 0.65 of swing frames within 1 cm of the floor unlifted; one pass
-    # 0.47, two 0.24, three 0.23).
+    # 0.47, two 0.26, three 0.25, five 0.25).
     for _ in range(PASSES):
         again = lift_swing_feet(
             config,
