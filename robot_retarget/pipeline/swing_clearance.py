@@ -16,8 +16,9 @@ own height rule, per side: the lower of ankle and toe above their standing heigh
 the leg-length ratio) is turned about its ankle's pitch joint by the smallest angle that lifts
 it there, or as far as a turn can (a flat foot under a low ankle). Only that joint moves, so
 every scored segment keeps its direction. The turns are smoothed over ``SMOOTH_S`` and held
-where needed, reached and left within the joint's velocity limit inside the lifted frames (a
-foot the performer stands on is never turned), at most ``MAX_TURN_RAD`` from the solved angle
+where needed, reached and left within the joint's velocity limit (a foot the performer stands
+on is not turned, but for ``STANCE_RAMP_S`` at either end of its stance), at most
+``MAX_TURN_RAD`` from the solved angle
 and inside the joint's limits; then the base is placed again, and the feet lifted again from
 there (``PASSES``).
 """
@@ -46,6 +47,13 @@ from robot_retarget.robot.kinematics import RobotKinematics
 
 SMOOTH_S = 0.04  # Gaussian σ of the turns (5 frames at 125 Hz): no step where a lift starts
 MAX_TURN_RAD = 0.8  # the largest turn of a foot from its solved angle, either way (46°)
+# A turn may ramp into the last and first STANCE_RAMP_S of a stance (heel-off and heel
+# strike), not deeper. Chosen on the tuning subjects 02 05 13 (OP3, share of swing frames
+# within 1 cm of the floor / jerk): none 0.158 / 1677 rad/s³, 0.05 s 0.142 / 1545, 0.1 s
+# 0.141 / 1520, 0.2 s 0.142 / 1478, anywhere 0.159 / 1427 (unlifted 0.352 / 1370); 0.2 s
+# and more tipped the planted foot longer for little less jerk (an unbounded ramp had put
+# 08_01's left foot on its toes, 46°, for 24 frames of stance).
+STANCE_RAMP_S = 0.1
 PASSES = 3  # lift, place the base again, lift from there: at most this many times
 _STEPS = 41  # turns tried in [−MAX_TURN_RAD, MAX_TURN_RAD]: 2.3° apart
 _MOVES_M = 1e-6  # a joint moves a point when a 0.1 rad turn shifts it further than this
@@ -260,6 +268,14 @@ def robot_foot_pitches(config: RobotConfig) -> dict[str, FootPitch]:
     return foot_pitch_joints(config, sides, ankles) if sides else {}
 
 
+def _deep_in(mask: npt.NDArray[np.bool_], frames: float) -> npt.NDArray[np.bool_]:
+    """``mask`` without its frames within ``frames`` of an unmasked one."""
+    if frames <= 0.0 or mask.all():
+        return mask.copy()
+    gap = -_cone(np.zeros(len(mask)), ~mask, 1.0, 1.0)  # frames to the nearest unmasked one
+    return np.asarray(mask & (gap > frames), dtype=bool)
+
+
 def clear_swing_feet(
     config: RobotConfig,
     motion: HumanMotion,
@@ -277,13 +293,16 @@ def clear_swing_feet(
     heights = performer_foot_heights_m(config, motion)
     planted = planted_feet(config, motion.positions(), motion.fps)
     columns = foot_points(config)  # planted's columns
-    standing = {side: planted[:, columns.index(foot.points[0])] for side, foot in feet.items()}
+    standing = {
+        side: _deep_in(planted[:, columns.index(foot.points[0])], STANCE_RAMP_S * motion.fps)
+        for side, foot in feet.items()
+    }
     wanted = {side: np.where(standing[side], -np.inf, heights[side]) for side in feet}
     lifted = np.array(q, dtype=np.float64)
     # A swing foot that dipped below the stance foot held the whole robot up (the base puts the
     # lowest point on the floor); lifted, the base comes down, and the foot is lifted again
     # from there (CMU 02_01: 0.65 of swing frames within 1 cm of the floor unlifted; one pass
-    # 0.47, two 0.26, three 0.25, five 0.25).
+    # 0.46, two 0.24, three 0.23, five 0.18).
     for _ in range(PASSES):
         again = lift_swing_feet(
             config,
