@@ -106,6 +106,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "rate); default: each limb's branch chosen on the whole clip, the swing feet lifted "
         "to the performer's height",
     )
+    parser.add_argument(
+        "--feet-as-solved",
+        action="store_true",
+        help="leave the swing feet as solved instead of lifting each to the performer's "
+        "height by its ankle's pitch joint (--stream-branches implies it)",
+    )
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     parser.add_argument(
         "--lead-in",
@@ -283,7 +289,7 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
         canonical_input=args.canonical_input,
         foot_lock=args.foot_lock,
         whole_clip_branches=not args.stream_branches,
-        lift_swing_feet=not args.stream_branches,
+        lift_swing_feet=not (args.stream_branches or args.feet_as_solved),
     )
 
 
