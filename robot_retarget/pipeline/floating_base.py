@@ -105,6 +105,12 @@ def leg_length_m(skeleton: Skeleton) -> float:
     return float(np.linalg.norm(off[Joint.LeftLeg]) + np.linalg.norm(off[Joint.LeftFoot]))
 
 
+def leg_length_ratio(config: RobotConfig, skeleton: Skeleton) -> float:
+    """The robot's leg length over the performer's (``skeleton``'s): what scales the
+    performer's path and foot heights to the robot."""
+    return leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(skeleton)
+
+
 def floating_base(
     config: RobotConfig,
     motion: HumanMotion,
@@ -131,7 +137,7 @@ def floating_base(
             got=q_arr.shape,
         )
     feet = foot_points(config)
-    ratio = leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(motion.skeleton)
+    ratio = leg_length_ratio(config, motion.skeleton)
 
     # Orientation: root frame → body axes (forward, left, up) → trunk frame → world.
     human = motion.positions()
@@ -194,7 +200,7 @@ def performer_foot_heights_m(config: RobotConfig, motion: HumanMotion) -> dict[s
     """Per side ("Left", "Right"), (T,) how high the performer's foot is above their ground,
     scaled to the robot: the lower of its ankle and toe above their standing heights (the
     rule that places the base, :func:`floating_base`), times the leg-length ratio."""
-    ratio = leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(motion.skeleton)
+    ratio = leg_length_ratio(config, motion.skeleton)
     heights = human_foot_heights_m(motion.positions())
     return {
         side: ratio * heights[:, list(cols)].min(axis=1) for side, cols in _SIDE_COLUMNS.items()

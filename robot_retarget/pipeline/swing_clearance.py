@@ -17,7 +17,8 @@ the leg-length ratio) is turned about its ankle's pitch joint by the smallest an
 it there, or as far as a turn can (a flat foot under a low ankle). Only that joint moves, so
 every scored segment keeps its direction. The turns are smoothed over ``SMOOTH_S`` and held
 where needed, reached and left within the joint's velocity limit (a foot the performer stands
-on is not turned, but for ``STANCE_RAMP_S`` at either end of its stance), at most
+on is not turned, but in the first and last ``STANCE_RAMP_S`` of its stance, heel strike and
+heel-off, where it is lifted to the performer's height there as well), at most
 ``MAX_TURN_RAD`` from the solved angle
 and inside the joint's limits; then the base is placed again, and the feet lifted again from
 there (``PASSES``).
@@ -43,12 +44,13 @@ from robot_retarget.pipeline.floating_base import (
     planted_feet,
 )
 from robot_retarget.robot.config import RobotConfig
-from robot_retarget.robot.kinematics import RobotKinematics
+from robot_retarget.robot.kinematics import RobotKinematics, homogeneous
 
 SMOOTH_S = 0.04  # Gaussian σ of the turns (5 frames at 125 Hz): no step where a lift starts
 MAX_TURN_RAD = 0.8  # the largest turn of a foot from its solved angle, either way (46°)
-# A turn may ramp into the last and first STANCE_RAMP_S of a stance (heel-off and heel
-# strike), not deeper. Chosen on the tuning subjects 02 05 13 (OP3, share of swing frames
+# The first and last STANCE_RAMP_S of a stance (heel strike and heel-off) are lifted as a
+# swing is (to the performer's height there, near the floor) and the turns ramp there; deeper
+# in a stance nothing is turned. Chosen on the tuning subjects 02 05 13 (OP3, share of swing frames
 # within 1 cm of the floor / jerk): none 0.158 / 1677 rad/s³, 0.05 s 0.142 / 1545, 0.1 s
 # 0.141 / 1520, 0.2 s 0.142 / 1478, anywhere 0.159 / 1427 (unlifted 0.352 / 1370); 0.2 s
 # and more tipped the planted foot longer for little less jerk (an unbounded ramp had put
@@ -81,13 +83,12 @@ def foot_pitch_joints(
     poses = np.vstack([np.zeros(n), 0.1 * np.eye(n)])
     left = body_to_root(config)[:, 1]  # the robot's left, root frame
     every = kin.frame_positions(poses)
-    carried = (np.linalg.norm(every[1:] - every[0], axis=-1) > _MOVES_M).sum(axis=1)  # (J,)
+    shifted = np.linalg.norm(every[1:] - every[0], axis=-1)  # (J, every frame)
+    carried = (shifted > _MOVES_M).sum(axis=1)  # (J,)
+    rot = kin.frame_rotations(poses[0], [c.child_link for c in config.joints])
     out: dict[str, FootPitch] = {}
     for side, points in sides.items():
-        frames = [*points, ankles[side]]
-        pos = kin.frame_positions(poses, frames)
-        moved = np.linalg.norm(pos[1:] - pos[0], axis=-1)  # (J, P + 1)
-        rot = kin.frame_rotations(poses[0], [c.child_link for c in config.joints])
+        moved = shifted[:, kin.frame_indices([*points, ankles[side]])]  # (J, P + 1)
         # Of the joints with an axis within 60° of lateral: the one that turns most foot
         # points, then most of the robot's frames (an ankle before a toe joint below it),
         # then the most lateral.
@@ -106,22 +107,8 @@ def foot_pitch_joints(
 
 def base_transforms(root_pos: npt.ArrayLike, root_quat: npt.ArrayLike) -> FloatArray:
     """(T, 4, 4) the base link's pose in the world from positions (T, 3) and w-x-y-z (T, 4)."""
-    pos = np.asarray(root_pos, dtype=np.float64)
-    out = np.zeros((len(pos), 4, 4))
-    out[:, :3, :3] = quat.to_matrix(np.asarray(root_quat, dtype=np.float64))
-    out[:, :3, 3] = pos
-    out[:, 3, 3] = 1.0
-    return out
-
-
-def _rotate(points: FloatArray, axis: FloatArray, angle: FloatArray) -> FloatArray:
-    """``points`` (N, P, 3) turned about unit ``axis`` (N, 3) through the origin by ``angle``
-    (N, K): (N, K, P, 3) (Rodrigues)."""
-    c, s = np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
-    a = axis[:, None, None, :]
-    p = points[:, None, :, :]
-    along = np.sum(a * p, axis=-1, keepdims=True) * a
-    return np.asarray(c * p + s * np.cross(a, p) + (1.0 - c) * along, dtype=np.float64)
+    rot = quat.to_matrix(np.asarray(root_quat, dtype=np.float64))
+    return homogeneous(rot, np.asarray(root_pos, dtype=np.float64))
 
 
 def lift_turns(
@@ -150,7 +137,8 @@ def lift_turns(
     actual = np.clip(q[need, j, None] + tried, lower, upper) - q[need, j, None]  # (N, K)
     axis = rot[need, 0] @ axis_local  # (N, 3) world
     origin = pos[need, 0]
-    turned = _rotate(pos[need, 1:] - origin[:, None], axis, actual)  # (N, K, P, 3)
+    turns_about = quat.from_axis_angle(axis[:, None, :], actual)[:, :, None, :]  # (N, K, 1, 4)
+    turned = quat.rotate(turns_about, (pos[need, 1:] - origin[:, None])[:, None])  # (N, K, P, 3)
     heights = turned[..., 2].min(axis=-1) + origin[:, None, 2]  # (N, K)
     enough = heights >= wanted_m[need, None]
     # The smallest turn that is enough; where none is, the one that lifts most.
@@ -289,7 +277,8 @@ def clear_swing_feet(
     feet = robot_foot_pitches(config)
     if not feet:
         return np.array(q, dtype=np.float64), base
-    # Only a foot the performer has lifted: one they stand on is the base's (its pinning).
+    # Only a foot the performer has lifted, or at the ends of its stance: deeper in, one they
+    # stand on is the base's (its pinning).
     heights = performer_foot_heights_m(config, motion)
     planted = planted_feet(config, motion.positions(), motion.fps)
     columns = foot_points(config)  # planted's columns

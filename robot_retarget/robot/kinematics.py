@@ -104,7 +104,7 @@ class RobotKinematics:
         self.config = config
         self.chain = KinematicChain.from_config(config)
         self._index = {n: i for i, n in enumerate(self.chain.frame_names)}
-        self._fixed = _homogeneous(self.chain.frame_rot, self.chain.frame_pos)  # (F_fixed, 4, 4)
+        self._fixed = homogeneous(self.chain.frame_rot, self.chain.frame_pos)  # (F_fixed, 4, 4)
 
     @property
     def num_joints(self) -> int:
@@ -232,7 +232,8 @@ def _rpy_matrices(rpys: Sequence[tuple[float, float, float]]) -> FloatArray:
     return matrix_from_euler(np.array(rpys, dtype=np.float64), "xyz")
 
 
-def _homogeneous(rot: FloatArray, pos: FloatArray) -> FloatArray:
+def homogeneous(rot: FloatArray, pos: FloatArray) -> FloatArray:
+    """Homogeneous transforms (…, 4, 4) from rotations (…, 3, 3) and positions (…, 3)."""
     out = np.zeros((*rot.shape[:-2], 4, 4))
     out[..., :3, :3] = rot
     out[..., :3, 3] = pos

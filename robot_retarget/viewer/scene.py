@@ -108,10 +108,9 @@ def performer_figure(
     """The performer of ``motion`` in ``config``'s world, at the robot's size, beside it."""
     # floating_base holds the frame conventions convert used; imported here because it pulls in
     # the optimizer's modules, which a trajectory-only view does not need.
-    from robot_retarget.pipeline.floating_base import HUMAN_TO_WORLD, leg_length_m
-    from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
+    from robot_retarget.pipeline.floating_base import HUMAN_TO_WORLD, leg_length_ratio
 
-    scale = leg_length_m(robot_canonical_skeleton(config)) / leg_length_m(motion.skeleton)
+    scale = leg_length_ratio(config, motion.skeleton)
     human = motion.positions()
     world = (human - human[:1, :1] * np.array([1.0, 0.0, 1.0])) @ HUMAN_TO_WORLD.T * scale
     ground = float(np.percentile(world[:, list(_FOOT_JOINTS), 2], _GROUND_PERCENTILE))
