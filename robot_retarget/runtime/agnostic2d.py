@@ -140,13 +140,19 @@ def rotation_6d_to_quat(d6: FloatArray) -> FloatArray:
     # b3 = b1 × b2; the matrix has columns b1, b2, b3 (m_rc = column c's row r).
     x3, y3, z3 = y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2
     trace = x1 + y2 + z3
-    if np.all(trace > -0.5):  # w ≥ 0.35 everywhere: the direct formula is well conditioned
-        w = 0.5 * np.sqrt(1.0 + trace)
-        f = 0.25 / w
-        q = np.stack([w, (z2 - y3) * f, (x3 - z1) * f, (y1 - x2) * f], axis=-1)
-        out: FloatArray = q / np.sqrt((q * q).sum(-1, keepdims=True))
+    # Where w ≥ 0.35 the direct formula is well conditioned; elsewhere the largest pivot
+    # (Shepperd), chosen per rotation as the stream's compiled graph chooses (a degenerate 6D
+    # pair, whose matrix is singular, gets a different answer from each formula: choosing for
+    # the whole array at once made one joint's answer depend on the others').
+    well = trace > -0.5
+    w = 0.5 * np.sqrt(np.maximum(1.0 + trace, 1e-12))
+    f = 0.25 / w
+    q = np.stack([w, (z2 - y3) * f, (x3 - z1) * f, (y1 - x2) * f], axis=-1)
+    out: FloatArray = q / np.sqrt((q * q).sum(-1, keepdims=True))
+    if np.all(well):
         return out
-    return quat.normalize(quat.from_matrix(np.stack([b1, b2, np.stack([x3, y3, z3], -1)], -1)))
+    m = np.stack([b1, b2, np.stack([x3, y3, z3], -1)], -1)
+    return np.where(well[..., None], out, quat.normalize(quat.from_matrix(m)))
 
 
 def _pointwise(x: FloatArray, conv: Conv) -> FloatArray:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from robot_retarget.casadi_jit import CompiledFunction
@@ -60,6 +60,13 @@ def test_features_are_the_normalisers_on_the_image_and_its_mirror(
         np.testing.assert_allclose(both.reshape(2, 51), want, rtol=0.0, atol=1e-12)
 
 
+# Found by hypothesis in a clean-clone CI run: joint 15's pair is a 180° turn (the largest
+# pivot's case) and joint 16's first column is zero (a singular matrix, which the two formulas
+# answer differently); numpy chose its formula for all joints at once, the graph per joint.
+_SINGULAR_BESIDE_A_HALF_TURN = [0.0] * 94 + [-1.0, 0.0, -0.5, 0.0, 0.0, 1.0, -1.0] + [0.0] * 163
+
+
+@example(_SINGULAR_BESIDE_A_HALF_TURN)
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.floats(-3.0, 3.0), min_size=264, max_size=264))
 def test_answers_are_the_mirror_averaged_rotations(values: list[float]) -> None:
