@@ -104,13 +104,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="settle each limb in the first frame's best branch and leave the swing feet as "
         "solved, as stream does (the file then matches a stream of the clip at the same "
         "rate); default: each limb's branch chosen on the whole clip, the swing feet lifted "
-        "to the performer's height",
+        "to the performer's height, the feet held in double support",
     )
     parser.add_argument(
         "--feet-as-solved",
         action="store_true",
-        help="leave the swing feet as solved instead of lifting each to the performer's "
-        "height by its ankle's pitch joint (--stream-branches implies it)",
+        help="leave the feet as solved: no swing foot lifted to the performer's height by its "
+        "ankle's pitch joint, no foot held against the other in double support by its leg "
+        "(--stream-branches implies it)",
     )
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     parser.add_argument(
@@ -290,6 +291,7 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
         foot_lock=args.foot_lock,
         whole_clip_branches=not args.stream_branches,
         lift_swing_feet=not (args.stream_branches or args.feet_as_solved),
+        hold_double_support=not (args.stream_branches or args.feet_as_solved),
     )
 
 
@@ -373,6 +375,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         "foot_lock": options.foot_lock,
         "whole_clip_branches": options.whole_clip_branches,
         "lift_swing_feet": options.lift_swing_feet,
+        "hold_double_support": options.hold_double_support,
         "format": args.format or "npz",
     }
     manifest = Manifest.open(args.out, settings, fresh=args.force)

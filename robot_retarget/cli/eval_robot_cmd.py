@@ -35,8 +35,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--feet-as-solved",
         action="store_true",
-        help="score the pipeline with its swing feet as solved, not lifted to the performer's "
-        "height (as stream sends them; convert lifts them)",
+        help="score the pipeline with its feet as solved: swing feet not lifted to the "
+        "performer's height, feet not held in double support (as stream sends them; convert "
+        "lifts and holds them)",
     )
     parser.add_argument(
         "--val-subjects",
@@ -219,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
                 config,
                 model,
                 foot_lock=args.foot_lock,
-                lift_swing_feet=not args.feet_as_solved,
+                place_feet=not args.feet_as_solved,
             ),
             settings,
             model_name=_label(model, args),
@@ -286,7 +287,7 @@ def _two_d(config: Any, clips: Any, model: str, args: argparse.Namespace) -> int
         if args.keypoint_model and not args.clip_keypoint_model
         else load_keypoint_model(args.clip_keypoint_model, whole_clip=True),
         pipeline=pipeline_runner(
-            config, model, foot_lock=args.foot_lock, lift_swing_feet=not args.feet_as_solved
+            config, model, foot_lock=args.foot_lock, place_feet=not args.feet_as_solved
         ),
         stream_pipeline=pipeline_runner(
             config, model, foot_lock=args.foot_lock, whole_clip_branches=False

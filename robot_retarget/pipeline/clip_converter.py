@@ -56,6 +56,9 @@ class ConvertOptions:
     # Swing feet lifted to the performer's height (robot_retarget.pipeline.swing_clearance);
     # False: as solved, as ``stream`` sends them.
     lift_swing_feet: bool = True
+    # Feet in double support held against each other (robot_retarget.pipeline.double_support);
+    # False: as solved, as ``stream`` sends them.
+    hold_double_support: bool = True
 
 
 @dataclass(frozen=True)
@@ -195,6 +198,7 @@ class ClipConverter:
             network=None if network is None else network.step,
             whole_clip_branches=opt.whole_clip_branches,
             lift_swing_feet=opt.lift_swing_feet,
+            hold_double_support=opt.hold_double_support,
         )
         traj = result.trajectory
         folders = job.make_folders

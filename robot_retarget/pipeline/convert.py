@@ -29,6 +29,7 @@ from robot_retarget.hardware.safety import SafetyLayer
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.motion.trajectory import RobotTrajectory
+from robot_retarget.pipeline.double_support import hold_double_support as hold_feet
 from robot_retarget.pipeline.floating_base import FloatingBase, floating_base
 from robot_retarget.pipeline.recorder import RecordingBackend
 from robot_retarget.pipeline.start_ramp import toward
@@ -101,6 +102,7 @@ def convert_motion(
     network: OnlineStep | None = None,
     whole_clip_branches: bool = False,
     lift_swing_feet: bool = True,
+    hold_double_support: bool = True,
 ) -> ClipResult:
     """Retarget ``motion`` frame by frame at ``fps`` (default: the robot's control rate).
 
@@ -117,6 +119,11 @@ def convert_motion(
     ankle's pitch joint (:mod:`robot_retarget.pipeline.swing_clearance`); False leaves the
     feet as solved, as ``stream`` sends them (with ``whole_clip_branches`` False the file then
     matches a stream of the clip).
+
+    ``hold_double_support``: where the performer stands on both feet, move the legs so that
+    the feet do not slide against each other (:mod:`robot_retarget.pipeline.double_support`);
+    False leaves them as solved (the base, pinned on their mean slip, lets each slide by half
+    of what they slide against each other), as ``stream`` sends them.
 
     ``network``: the network step to use instead of the model's own (e.g. a
     :class:`~robot_retarget.pipeline.precomputed_step.PrecomputedStep` of the clip read on its
@@ -165,13 +172,17 @@ def convert_motion(
         step.settle_branches = None  # never left for the next clip (or a stream) to inherit
     wall = time.perf_counter() - t_start
     safety.disconnect()
-    # The base link's pose in the robot's world (Z up, x forward), feet on the ground, and the
-    # swing feet lifted as high as the performer's (only the ankles' pitch joints move).
+    # The base link's pose in the robot's world (Z up, x forward), feet on the ground, the swing
+    # feet lifted as high as the performer's (only the ankles' pitch joints move), then the
+    # feet held against each other where the performer stands on both (the legs' joints move;
+    # after the lift, which tips a foot at the ends of its stance).
     base: FloatingBase | None = None
     if n and lift_swing_feet:
         q, base = clear_swing_feet(config, m, q, trunk_frames=trunk)
     elif n:
         base = floating_base(config, m, q, trunk_frames=trunk)
+    if base is not None and hold_double_support:
+        q, base = hold_feet(config, m, q, base, trunk_frames=trunk)
     pos = base.root_pos if base is not None else root_pos
     quat = base.root_quat if base is not None else root_quat
     t0 = 0.0

@@ -203,15 +203,16 @@ def pipeline_runner(
     *,
     foot_lock: bool = False,
     whole_clip_branches: bool = True,
-    lift_swing_feet: bool | None = None,
+    place_feet: bool | None = None,
 ) -> PipelineFn:
     """The full pipeline (network → optimizer → safety) as one function of a motion, as
     ``convert`` runs it; ``foot_lock``: run the network's foot lock (``--foot-lock``; off on the
     robot by default); ``whole_clip_branches`` False: each limb in the first frame's best
     branch, as ``stream`` runs it (robot_retarget.pipeline.limb_branch_choice);
-    ``lift_swing_feet``: lift the swing feet as ``convert`` does (default: unless
-    ``whole_clip_branches`` is False, since ``stream`` sends the feet as solved)."""
-    lift = whole_clip_branches if lift_swing_feet is None else lift_swing_feet
+    ``place_feet``: lift the swing feet and hold the feet in double support as ``convert``
+    does (default: unless ``whole_clip_branches`` is False, since ``stream`` sends the feet as
+    solved)."""
+    place = whole_clip_branches if place_feet is None else place_feet
     from robot_retarget.pipeline.convert import convert_motion
     from robot_retarget.pipeline.step import RetargetStep
 
@@ -222,7 +223,11 @@ def pipeline_runner(
         if step is None:
             step = RetargetStep(config, model, motion.skeleton, foot_lock=foot_lock)
         result = convert_motion(
-            motion, step, whole_clip_branches=whole_clip_branches, lift_swing_feet=lift
+            motion,
+            step,
+            whole_clip_branches=whole_clip_branches,
+            lift_swing_feet=place,
+            hold_double_support=place,
         )
         traj = result.trajectory
         frame_ms = traj.frame_ms

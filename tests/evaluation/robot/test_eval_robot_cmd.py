@@ -103,14 +103,14 @@ def test_foot_lock_reaches_the_pipeline_and_the_report(
     args = _args("--data", str(shared_data_dir / "mocap"), "--val-subjects", "12",
                  "--max-frames", "40", "--json", "--cache-dir", "none", "--foot-lock")  # fmt: skip
     assert eval_robot_cmd.run(args) == 0
-    assert asked == [{"foot_lock": True, "lift_swing_feet": True}]
+    assert asked == [{"foot_lock": True, "place_feet": True}]
     assert json.loads(capsys.readouterr().out)["model"] == "default + foot lock"
     asked.clear()
     args = _args("--data", str(shared_data_dir / "mocap"), "--val-subjects", "12",
                  "--max-frames", "40", "--json", "--cache-dir", "none",
                  "--feet-as-solved")  # fmt: skip
     assert eval_robot_cmd.run(args) == 0
-    assert asked == [{"foot_lock": False, "lift_swing_feet": False}]
+    assert asked == [{"foot_lock": False, "place_feet": False}]
     assert json.loads(capsys.readouterr().out)["model"] == "default, feet as solved"
 
 
