@@ -121,7 +121,15 @@ def run(args: argparse.Namespace) -> int:
     # 1. offline: the same per-frame step, at the control rate (and at the stream's speed, so
     #    that the two can be compared frame by frame)
     played = dataclasses.replace(motion, fps=motion.fps * args.speed)
-    offline = convert_motion(played, step, progress=ProgressBar("convert"))
+    # The feet as the stream sends them (no swing lift, no double-support hold): the two are
+    # compared frame by frame.
+    offline = convert_motion(
+        played,
+        step,
+        progress=ProgressBar("convert"),
+        lift_swing_feet=False,
+        hold_double_support=False,
+    )
     save(traj_path, partial(offline.trajectory.write, overwrite=True))
     save(
         bvh_path,
@@ -193,7 +201,9 @@ def run(args: argparse.Namespace) -> int:
         seen = dataclasses.replace(truth, fps=truth.fps * args.speed)
         base = offline.trajectory.root_quat  # each robot on its trajectory's floating base
         from_2d = scorer.score(seen, offline_q, base)[0]
-        from_3d_traj = convert_motion(seen, step).trajectory
+        from_3d_traj = convert_motion(
+            seen, step, lift_swing_feet=False, hold_double_support=False
+        ).trajectory
         from_3d = scorer.score(seen, from_3d_traj.q, from_3d_traj.root_quat)[0]
         still = scorer.score(seen, np.repeat(config.init_pose[None], len(offline_q), 0), base)[0]
         checks[

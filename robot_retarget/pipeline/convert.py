@@ -62,8 +62,11 @@ def check_limits(
 ) -> LimitCheck:
     """Check a (T, J) trajectory against the config's position and velocity limits; steps are
     counted from ``q_start`` (where the robot was before the first row) when given, else
-    between the rows only (a file that starts where its first row is)."""
+    between the rows only (a file that starts where its first row is). A value that is not a
+    number exceeds every limit."""
     a = np.asarray(q, dtype=np.float64)
+    if not np.all(np.isfinite(a)):
+        return LimitCheck(float("inf"), float("inf"))
     above = float(np.max(a - config.upper, initial=0.0))
     below = float(np.max(config.lower - a, initial=0.0))
     pos = max(0.0, above, below)
@@ -117,8 +120,8 @@ def convert_motion(
 
     ``lift_swing_feet``: lift each swing foot as high as the performer's, turning only its
     ankle's pitch joint (:mod:`robot_retarget.pipeline.swing_clearance`); False leaves the
-    feet as solved, as ``stream`` sends them (with ``whole_clip_branches`` False the file then
-    matches a stream of the clip).
+    feet as solved, as ``stream`` sends them (with ``whole_clip_branches`` and
+    ``hold_double_support`` False as well, the file then matches a stream of the clip).
 
     ``hold_double_support``: where the performer stands on both feet, move the legs so that
     the feet do not slide against each other (:mod:`robot_retarget.pipeline.double_support`);

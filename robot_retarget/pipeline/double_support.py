@@ -7,13 +7,14 @@ performer's bone directions, a small humanoid's proportions are not a person's, 
 slide against each other while the performer's stay put. The base, pinned on the mean slip of
 the points down, lets each foot slide by half of it (CMU 02, 05, 13 on OP3: per
 double-support phase, the largest slide of one foot's points on the floor against the other's
-was 1.86 cm at the 90th percentile; 91 % of the sliding under planted feet was in double
+was 2.38 cm at the 90th percentile; 91 % of the sliding under planted feet was in double
 support).
 
 So after the clip is solved, its swing feet lifted and its base placed, in each phase where the
 performer stands on both feet, the two feet are moved back against each other by what their
 points on the floor slid since the phase began (summed frame by frame over the points on the
-floor in both frames, so a foot rolling onto its toes is held at its toes), each by half of it
+floor in both frames, so a foot rolling onto its toes is held at its toes; each frame's slide
+let go over ``HOLD_S``, so slow creep over a long stance is not held), each by half of it
 and by its own leg's joints (those that move this foot and not the other): a damped
 least-squares IK shifts the foot link horizontally and keeps its orientation and height
 against the base (at most ``MAX_SHIFT_M`` between the feet, no joint more than
@@ -53,6 +54,16 @@ MAX_CORRECTION_RAD = 0.25  # the most any leg joint moves to hold a foot (14°)
 # 0.04 s 0.031 / 1523 / 14.39°, no hold 0.034 / 1520 / 14.10°.
 SMOOTH_S = 0.04
 FADE_S = 0.15  # a correction fades out over this once its phase is over
+# A gap this short in the performer's contact (its test flickers for a frame or two in 168 of
+# the 543 gaps between phases over the 70 clips) does not end a phase: ended, the correction
+# built up so far fell to 0 within two frames and the feet slid back at once.
+BRIDGE_S = 0.04
+# A slide is held back over about this long (the time constant of a leaky sum), so slow creep
+# over a long stance is let go: summed without a leak, a foot rocking heel to toe for 18 s (CMU
+# 02_07, 02_10) ran up 8.8–11.2 cm of "slide" whose feet ended 1.4–3.4 cm from where they began.
+# Chosen on OP3's tuning subjects 02 05 13 (slide per phase p90 cm / limb direction error):
+# no leak 1.36 / 14.39°, 1 s 1.41 / 14.18°, 0.5 s 1.54 cm (unheld 2.38 / 14.10°).
+HOLD_S = 1.0
 ROTATION_WEIGHT_M = 0.2  # a foot turn of 1 rad weighs as much as a 0.2 m shift in the IK
 _DAMPING = 1e-6  # Tikhonov term of the leg IK (m²): a near-singular knee's step stays finite
 _MAX_STEP_RAD = 0.1  # no joint moves further in one Gauss-Newton step (the linear model's reach)
@@ -104,12 +115,24 @@ def robot_legs(config: RobotConfig) -> dict[str, Leg]:
     return legs
 
 
-def phases(both_down: npt.ArrayLike) -> list[tuple[int, int]]:
-    """[start, stop) runs of True in ``both_down`` (T,), at least two frames long."""
+def phases(both_down: npt.ArrayLike, bridge: int = 0) -> list[tuple[int, int]]:
+    """[start, stop) runs of True in ``both_down`` (T,), at least two frames long, two runs
+    separated by at most ``bridge`` False frames joined into one."""
     flags = np.asarray(both_down, dtype=bool).astype(np.int8)
     edges = np.diff(np.concatenate([[0], flags, [0]]))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    return [(int(a), int(b)) for a, b in zip(starts, stops, strict=True) if b - a >= 2]
+    runs: list[tuple[int, int]] = []
+    for a, b in zip(starts, stops, strict=True):
+        if runs and a - runs[-1][1] <= bridge:
+            runs[-1] = (runs[-1][0], int(b))
+        else:
+            runs.append((int(a), int(b)))
+    return [(a, b) for a, b in runs if b - a >= 2]
+
+
+def bridge_frames(fps: float) -> int:
+    """The longest gap (frames at ``fps``) that does not end a double-support phase."""
+    return round(BRIDGE_S * fps)
 
 
 def _rotation_error(target: FloatArray, got: FloatArray) -> FloatArray:
@@ -185,6 +208,17 @@ def _mean_slip(xy: FloatArray, down: npt.NDArray[np.bool_]) -> FloatArray:
         return np.where(count[:, None] > 0, total / count[:, None], np.nan)
 
 
+def _leaky_sum(values: FloatArray, keep: float) -> FloatArray:
+    """(n, 2) running sums of ``values`` (n, 2) in which each frame first keeps ``keep`` of the
+    sum so far (``keep`` 1: the cumulative sum)."""
+    out = np.empty_like(values)
+    total = np.zeros(values.shape[1:])
+    for i, value in enumerate(values):
+        total = keep * total + value
+        out[i] = total
+    return out
+
+
 def hold_double_support(
     config: RobotConfig,
     motion: HumanMotion,
@@ -215,14 +249,16 @@ def hold_double_support(
     kin = RobotKinematics(config)
     fade = max(1, round(FADE_S * motion.fps))
     delta = np.zeros_like(out)
-    for start, stop in phases(standing["Left"] & standing["Right"]):
+    for start, stop in phases(standing["Left"] & standing["Right"], bridge_frames(motion.fps)):
         span = slice(start, stop)
         # How far the left foot's points on the floor slid against the right foot's since the
         # phase began; a frame where either foot has no point on the floor in both frames
         # adds nothing.
         slid = np.nan_to_num(slip["Left"][span] - slip["Right"][span])
         slid[0] = 0.0  # the feet are held from where the phase finds them
-        apart = -np.cumsum(slid, axis=0)  # (n, 2) what the left foot must move against the right
+        # What the left foot must move against the right: the slides summed, each let go
+        # over HOLD_S (a leaky sum), so that slow creep over a long stance is not held.
+        apart = -_leaky_sum(slid, np.exp(-1.0 / (HOLD_S * motion.fps)))
         size = np.linalg.norm(apart, axis=1, keepdims=True)
         apart *= np.minimum(1.0, MAX_SHIFT_M / np.maximum(size, 1e-12))
         end = min(len(out), stop + fade)
@@ -247,14 +283,15 @@ def hold_double_support(
 
 
 def double_support_slides(
-    config: RobotConfig, feet: npt.ArrayLike, planted: npt.ArrayLike
+    config: RobotConfig, feet: npt.ArrayLike, planted: npt.ArrayLike, fps: float
 ) -> FloatArray:
     """(phases,) per double-support phase (the performer stands on both feet, ``planted``
-    (T, F) from :func:`~robot_retarget.pipeline.floating_base.planted_feet`), the furthest the
-    left foot's points on the floor slid against the right foot's since the phase began
-    (metres; summed as :func:`hold_double_support` sums them), for robot foot points ``feet``
-    (T, F, 3) in the world, in :func:`~robot_retarget.pipeline.floating_base.foot_points`
-    order. Empty when the robot has no two legs or the performer never stands on both feet."""
+    (T, F) from :func:`~robot_retarget.pipeline.floating_base.planted_feet`; a short gap does
+    not end a phase, as in the hold), the furthest the left foot's points on the floor slid
+    against the right foot's since the phase began (metres; summed as the hold sums them,
+    without its leak), for robot foot points ``feet`` (T, F, 3) in the world at ``fps``, in
+    :func:`~robot_retarget.pipeline.floating_base.foot_points` order. Empty when the robot has
+    no two legs or the performer never stands on both feet."""
     f = np.asarray(feet, dtype=np.float64)
     down = np.asarray(planted, dtype=bool)
     legs = robot_legs(config)
@@ -267,7 +304,7 @@ def double_support_slides(
     }
     standing = [down[:, list(leg.columns)].any(axis=1) for leg in legs.values()]
     out = []
-    for start, stop in phases(standing[0] & standing[1]):
+    for start, stop in phases(standing[0] & standing[1], bridge_frames(fps)):
         slid = np.nan_to_num(slip["Left"][start + 1 : stop] - slip["Right"][start + 1 : stop])
         out.append(np.linalg.norm(np.cumsum(slid, axis=0), axis=1).max(initial=0.0))
     return np.asarray(out, dtype=np.float64)

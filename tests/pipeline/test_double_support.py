@@ -48,6 +48,7 @@ def test_a_robot_with_one_foot_has_no_legs_to_hold() -> None:
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.booleans(), max_size=40))
 def test_phases_are_the_runs_of_two_frames_or_more(flags: list[bool]) -> None:
+    """Without a bridge: the runs of True, the one-frame runs left out."""
     found = ds.phases(np.array(flags, dtype=bool))
     covered = np.zeros(len(flags), dtype=bool)
     for start, stop in found:
@@ -106,6 +107,27 @@ def test_rate_limited_angles_stay_inside_limits_and_speed(values: list[float], s
     assert np.all(np.abs(np.diff(out, axis=0)) <= step + 1e-12)
 
 
+def test_a_short_gap_does_not_end_a_phase() -> None:
+    flags = np.array([1, 1, 1, 0, 0, 1, 1, 0, 0, 0, 1, 1, 1], dtype=bool)
+    assert ds.phases(flags) == [(0, 3), (5, 7), (10, 13)]
+    assert ds.phases(flags, bridge=2) == [(0, 7), (10, 13)]
+    assert ds.phases(flags, bridge=3) == [(0, 13)]
+    assert ds.bridge_frames(125.0) == 5
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.floats(-0.01, 0.01), min_size=1, max_size=30),
+    st.floats(0.5, 1.0),
+)
+def test_a_leaky_sum_lets_each_slide_go_at_its_rate(values: list[float], keep: float) -> None:
+    slid = np.column_stack([values, np.zeros(len(values))])
+    out = ds._leaky_sum(slid, keep)
+    ages = np.arange(len(values))[::-1]
+    assert out[-1, 0] == pytest.approx(float(np.sum(keep**ages * np.array(values))), abs=1e-12)
+    assert np.allclose(ds._leaky_sum(slid, 1.0), np.cumsum(slid, axis=0))
+
+
 @pytest.mark.data
 @pytest.mark.parametrize("robot", ["op3", "poppy_humanoid"])
 def test_feet_stop_sliding_against_each_other_on_a_real_walk(
@@ -132,7 +154,7 @@ def test_feet_stop_sliding_against_each_other_on_a_real_walk(
         assert result.limits.ok
         assert check_limits(config, traj.q, 1.0 / traj.fps).ok
         feet = trajectory_feet(config, traj.q, traj.root_pos, traj.root_quat)
-        slides.append(np.percentile(ds.double_support_slides(config, feet, planted), 90))
+        slides.append(np.percentile(ds.double_support_slides(config, feet, planted, traj.fps), 90))
         skates.append(planted_skate_m_s(feet, traj.fps, planted))
     assert slides[1] < 0.7 * slides[0]
     before, after = skates
