@@ -14,7 +14,12 @@ from robot_retarget.motion.human_motion import load_motion
 from robot_retarget.pipeline import double_support as ds
 from robot_retarget.pipeline.convert import check_limits, convert_motion
 from robot_retarget.pipeline.defaults import default_model_name
-from robot_retarget.pipeline.floating_base import planted_feet, planted_skate_m_s, trajectory_feet
+from robot_retarget.pipeline.floating_base import (
+    floating_base,
+    planted_feet,
+    planted_skate_m_s,
+    trajectory_feet,
+)
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.kinematics import RobotKinematics
 from robot_retarget.robot.loader import load_robot_config
@@ -165,3 +170,35 @@ def test_feet_stop_sliding_against_each_other_on_a_real_walk(
     moved = np.flatnonzero(np.abs(held - solved).max(axis=0) > 0)
     legs = np.concatenate([leg.joints for leg in ds.robot_legs(config).values()])
     assert set(moved) <= set(legs)
+
+
+@pytest.mark.data
+@pytest.mark.parametrize("frames", [(0, 2), (0, 9), (300, 357)])
+def test_short_clips_and_a_stance_at_the_end_stay_inside_the_limits(
+    shared_data_dir: Path, frames: tuple[int, int]
+) -> None:
+    """A clip of two frames, one shorter than the smoothing, and the end of a walk in double
+    support (02_01 ends standing): every joint inside its limits and speed limit, only leg
+    joints moved; a robot with one foot is returned as it came."""
+    motion = load_motion(shared_data_dir / "mocap" / "02" / "02_01.bvh").resample(125.0)
+    motion = motion.frames(*frames)
+    rng = np.random.default_rng(1)
+    q = np.asarray(OP3.init_pose) + rng.normal(0.0, 0.002, (motion.num_frames, OP3.num_joints))
+    q = np.clip(q, OP3.lower, OP3.upper)
+    base = floating_base(OP3, motion, q)
+    held, held_base = ds.hold_double_support(OP3, motion, q, base)
+    assert held.shape == q.shape
+    assert check_limits(OP3, q, 1.0 / 125.0).ok  # as a solve hands them over
+    assert check_limits(OP3, held, 1.0 / 125.0).ok
+    assert np.all(held >= OP3.lower)
+    assert np.all(held <= OP3.upper)
+    legs = np.concatenate([leg.joints for leg in ds.robot_legs(OP3).values()])
+    others = np.setdiff1d(np.arange(OP3.num_joints), legs)
+    assert np.array_equal(held[:, others], q[:, others])
+    assert held_base.root_pos.shape == (motion.num_frames, 3)
+    one_foot = dataclasses.replace(
+        OP3, bones=tuple(b for b in OP3.bones if not b.canonical.startswith("Right"))
+    )
+    same, same_base = ds.hold_double_support(one_foot, motion, q, base)
+    assert np.array_equal(same, q)
+    assert same_base is base
