@@ -69,7 +69,6 @@ _DAMPING = 1e-6  # Tikhonov term of the leg IK (m²): a near-singular knee's ste
 _MAX_STEP_RAD = 0.1  # no joint moves further in one Gauss-Newton step (the linear model's reach)
 _ITERATIONS = 4  # Gauss-Newton steps per frame: a 1 cm shift to under 0.5 mm (p99)
 _EPS_RAD = 1e-5  # finite-difference step of the leg Jacobian
-_MOVES_M = 1e-6  # a joint moves a point when a 0.1 rad turn shifts it further than this
 
 
 @dataclass(frozen=True)
@@ -91,19 +90,15 @@ def robot_legs(config: RobotConfig) -> dict[str, Leg]:
         return {}
     points = foot_points(config)
     parents = {f.name: f.parent_link for f in config.frames}
-    kin = RobotKinematics(config)
-    n = config.num_joints
-    poses = np.vstack([np.zeros(n), 0.1 * np.eye(n)])  # the zero pose, each joint alone turned
-    shifted = kin.frame_positions(poses, list(points))  # (J + 1, P, 3)
-    carried = np.linalg.norm(shifted[1:] - shifted[0], axis=-1)  # (J, P)
+    carried = RobotKinematics(config).carried_frames(points)  # (J, P)
     moved = {
-        side: carried[:, [points.index(p) for p in names]].max(axis=1)
+        side: carried[:, [points.index(p) for p in names]].any(axis=1)
         for side, names in sides.items()
     }
     legs: dict[str, Leg] = {}
     for side, names in sides.items():
         other = "Right" if side == "Left" else "Left"
-        joints = np.flatnonzero((moved[side] > _MOVES_M) & (moved[other] <= _MOVES_M))
+        joints = np.flatnonzero(moved[side] & ~moved[other])
         links = {parents.get(p) for p in names}
         if joints.size == 0 or len(links) != 1 or None in links:
             return {}
@@ -208,6 +203,28 @@ def _mean_slip(xy: FloatArray, down: npt.NDArray[np.bool_]) -> FloatArray:
         return np.where(count[:, None] > 0, total / count[:, None], np.nan)
 
 
+def _phase_slides(
+    legs: dict[str, Leg], feet: FloatArray, planted: npt.NDArray[np.bool_], fps: float
+) -> list[tuple[int, int, FloatArray]]:
+    """Per double-support phase (the performer stands on both feet, ``planted`` (T, F); a gap
+    of ``bridge_frames`` or fewer does not end it): its [start, stop) and (stop − start, 2)
+    per frame how far the left foot's points on the floor slid against the right foot's since
+    the frame before, in the world (0 at the phase's first frame and where either foot has no
+    point on the floor in both frames), for foot points ``feet`` (T, F, 3), world."""
+    on_floor = (feet[:, :, 2] <= CONTACT_M) & planted
+    slip = {
+        side: _mean_slip(feet[:, list(leg.columns), :2], on_floor[:, list(leg.columns)])
+        for side, leg in legs.items()
+    }
+    standing = [planted[:, list(leg.columns)].any(axis=1) for leg in legs.values()]
+    out = []
+    for start, stop in phases(standing[0] & standing[1], bridge_frames(fps)):
+        slid = np.nan_to_num(slip["Left"][start:stop] - slip["Right"][start:stop])
+        slid[0] = 0.0  # the feet are held from where the phase finds them
+        out.append((start, stop, slid))
+    return out
+
+
 def _leaky_sum(values: FloatArray, keep: float) -> FloatArray:
     """(n, 2) running sums of ``values`` (n, 2) in which each frame first keeps ``keep`` of the
     sum so far (``keep`` 1: the cumulative sum)."""
@@ -235,27 +252,13 @@ def hold_double_support(
     legs = robot_legs(config)
     if len(out) < 2 or not legs:
         return out, base
-    feet = base.feet  # (T, P, 3) world, foot_points order
     planted = planted_feet(config, motion.positions(), motion.fps)
-    standing: dict[str, npt.NDArray[np.bool_]] = {
-        side: np.asarray(planted[:, list(leg.columns)].any(axis=1)) for side, leg in legs.items()
-    }
-    on_floor = (feet[:, :, 2] <= CONTACT_M) & planted
-    slip = {
-        side: _mean_slip(feet[:, list(leg.columns), :2], on_floor[:, list(leg.columns)])
-        for side, leg in legs.items()
-    }
     rot = quat.to_matrix(base.root_quat)  # (T, 3, 3) root-frame vectors → world
     kin = RobotKinematics(config)
     fade = max(1, round(FADE_S * motion.fps))
     delta = np.zeros_like(out)
-    for start, stop in phases(standing["Left"] & standing["Right"], bridge_frames(motion.fps)):
+    for start, stop, slid in _phase_slides(legs, base.feet, planted, motion.fps):
         span = slice(start, stop)
-        # How far the left foot's points on the floor slid against the right foot's since the
-        # phase began; a frame where either foot has no point on the floor in both frames
-        # adds nothing.
-        slid = np.nan_to_num(slip["Left"][span] - slip["Right"][span])
-        slid[0] = 0.0  # the feet are held from where the phase finds them
         # What the left foot must move against the right: the slides summed, each let go
         # over HOLD_S (a leaky sum), so that slow creep over a long stance is not held.
         apart = -_leaky_sum(slid, np.exp(-1.0 / (HOLD_S * motion.fps)))
@@ -297,14 +300,8 @@ def double_support_slides(
     legs = robot_legs(config)
     if not legs:
         return np.zeros(0)
-    on_floor = (f[:, :, 2] <= CONTACT_M) & down
-    slip = {
-        side: _mean_slip(f[:, list(leg.columns), :2], on_floor[:, list(leg.columns)])
-        for side, leg in legs.items()
-    }
-    standing = [down[:, list(leg.columns)].any(axis=1) for leg in legs.values()]
-    out = []
-    for start, stop in phases(standing[0] & standing[1], bridge_frames(fps)):
-        slid = np.nan_to_num(slip["Left"][start + 1 : stop] - slip["Right"][start + 1 : stop])
-        out.append(np.linalg.norm(np.cumsum(slid, axis=0), axis=1).max(initial=0.0))
+    out = [
+        np.linalg.norm(np.cumsum(slid, axis=0), axis=1).max(initial=0.0)
+        for _, _, slid in _phase_slides(legs, f, down, fps)
+    ]
     return np.asarray(out, dtype=np.float64)

@@ -58,7 +58,6 @@ MAX_TURN_RAD = 0.8  # the largest turn of a foot from its solved angle, either w
 STANCE_RAMP_S = 0.1
 PASSES = 3  # lift, place the base again, lift from there: at most this many times
 _STEPS = 41  # turns tried in [−MAX_TURN_RAD, MAX_TURN_RAD]: 2.3° apart
-_MOVES_M = 1e-6  # a joint moves a point when a 0.1 rad turn shifts it further than this
 
 
 @dataclass(frozen=True)
@@ -78,26 +77,22 @@ def foot_pitch_joints(
     one that moves most of its points, then most of the robot's frames (an ankle, not a toe
     joint below it), then the most lateral."""
     kin = RobotKinematics(config)
-    n = config.num_joints
-    # The zero pose, then each joint alone turned by 0.1 rad: one batched FK.
-    poses = np.vstack([np.zeros(n), 0.1 * np.eye(n)])
     left = body_to_root(config)[:, 1]  # the robot's left, root frame
-    every = kin.frame_positions(poses)
-    shifted = np.linalg.norm(every[1:] - every[0], axis=-1)  # (J, every frame)
-    carried = (shifted > _MOVES_M).sum(axis=1)  # (J,)
-    rot = kin.frame_rotations(poses[0], [c.child_link for c in config.joints])
+    moves = kin.carried_frames()  # (J, every frame)
+    carried = moves.sum(axis=1)  # (J,)
+    rot = kin.frame_rotations(np.zeros(config.num_joints), [c.child_link for c in config.joints])
     out: dict[str, FootPitch] = {}
     for side, points in sides.items():
-        moved = shifted[:, kin.frame_indices([*points, ankles[side]])]  # (J, P + 1)
+        moved = moves[:, kin.frame_indices([*points, ankles[side]])]  # (J, P + 1)
         # Of the joints with an axis within 60° of lateral: the one that turns most foot
         # points, then most of the robot's frames (an ankle before a toe joint below it),
         # then the most lateral.
         best, best_key = -1, (0, 0, 0.0)
         for j, joint in enumerate(config.joints):
-            if moved[j, -1] > _MOVES_M or moved[j, :-1].max() <= _MOVES_M:
+            if moved[j, -1] or not moved[j, :-1].any():
                 continue  # moves the ankle (a leg joint), or not the foot
             align = abs(float(left @ rot[j] @ np.asarray(joint.axis, dtype=np.float64)))
-            key = (int((moved[j, :-1] > _MOVES_M).sum()), int(carried[j]), align)
+            key = (int(moved[j, :-1].sum()), int(carried[j]), align)
             if align > 0.5 and key > best_key:
                 best, best_key = j, key
         if best >= 0:

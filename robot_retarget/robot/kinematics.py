@@ -27,6 +27,9 @@ from robot_retarget.array_types import FloatArray, IntArray
 from robot_retarget.geometry.euler import matrix_from_euler
 from robot_retarget.robot.config import RobotConfig
 
+_PROBE_RAD = 0.1  # the turn that tells which frames a joint carries (carried_frames)
+_CARRIES_M = 1e-6  # … a frame it moves further than this
+
 
 @dataclass(frozen=True)
 class KinematicChain:
@@ -210,6 +213,15 @@ class RobotKinematics:
     ) -> FloatArray:
         """Rotation matrices (…, F, 3, 3) of the named frames (all ``frame_names`` by default)."""
         return self.frame_poses(q, frames, root_transform)[0]
+
+    def carried_frames(self, frames: Sequence[str] | None = None) -> npt.NDArray[np.bool_]:
+        """(J, F) whether each joint alone, turned by 0.1 rad from the zero pose, moves each
+        named frame (all ``frame_names`` by default) further than 1 µm: the frames it carries.
+        One batched forward kinematics."""
+        n = self.num_joints
+        poses = np.vstack([np.zeros(n), _PROBE_RAD * np.eye(n)])
+        positions = self.frame_positions(poses, frames)
+        return np.asarray(np.linalg.norm(positions[1:] - positions[0], axis=-1) > _CARRIES_M)
 
     def _joint_angles(self, q: npt.ArrayLike) -> FloatArray:
         a = np.asarray(q, dtype=np.float64)

@@ -152,3 +152,13 @@ def test_zero_pose_geometry(op3: RobotConfig) -> None:
 def test_wrong_joint_count_is_rejected(op3: RobotConfig) -> None:
     with pytest.raises(ValueError, match="last axis of 20"):
         RobotKinematics(op3).frame_positions(np.zeros(19))
+
+
+def test_a_joint_carries_the_frames_below_it(op3: RobotConfig) -> None:
+    kin = RobotKinematics(op3)
+    carried = kin.carried_frames(["l_sole", "r_sole", "body_link"])
+    names = [j.name for j in op3.joints]
+    assert carried[names.index("l_knee")].tolist() == [True, False, False]
+    assert carried[names.index("r_ank_roll")].tolist() == [False, True, False]
+    assert not carried[:, 2].any()  # the root link moves with no joint
+    assert kin.carried_frames().shape == (op3.num_joints, len(kin.frame_names))
