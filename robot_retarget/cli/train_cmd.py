@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 
 NAME = "train"
 HELP = "Train a retargeting network (nkn, pmnet) on a folder of BVH clips."
+_DISTILL_WEIGHT = 0.5  # the teacher's default share of the target (--distill-weight)
 
 
 class TrainArgumentError(RetargetError):
@@ -181,6 +182,23 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="agnostic2d: start from this keypoint checkpoint's weights and architecture "
         "(fine-tuning; e.g. robot_retarget/data/checkpoints/agnostic2d.pt)",
     )
+    parser.add_argument(
+        "--distill-from",
+        action="append",
+        default=[],
+        metavar="CKPT",
+        help="agnostic2d: a keypoint checkpoint whose answer on each training window is a second "
+        "target (knowledge distillation); repeat for several, their answers averaged (e.g. "
+        "convert's four centred models, robot_retarget/data/checkpoints/agnostic2d_clip*.pt)",
+    )
+    parser.add_argument(
+        "--distill-weight",
+        type=float,
+        default=_DISTILL_WEIGHT,
+        metavar="W",
+        help="agnostic2d with --distill-from: the teacher's share of the target, the truth's "
+        "1 - W (default 0.5)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -231,9 +249,11 @@ def run(args: argparse.Namespace) -> int:
             "--mirror-probability, --speed-range and --arm-mix-probability augment agnostic2d's "
             f"windows; {args.model} does not use them (drop them, or pass --model agnostic2d)"
         )
-    if args.causal_probability is not None or args.init_from is not None:
+    distilling = bool(args.distill_from) or args.distill_weight != _DISTILL_WEIGHT
+    if args.causal_probability is not None or args.init_from is not None or distilling:
         raise TrainArgumentError(
-            "--causal-probability and --init-from are agnostic2d's; "
+            "--causal-probability, --init-from, --distill-from and --distill-weight are "
+            "agnostic2d's; "
             f"{args.model} does not use them (drop them, or pass --model agnostic2d)"
         )
     subjects = tuple(s for s in args.val_subjects.split(",") if s)
@@ -381,6 +401,11 @@ def _options_agnostic2d_ignores(args: argparse.Namespace) -> list[str]:
 
 def _run_agnostic2d(args: argparse.Namespace) -> int:
     """The 2D keypoint model has its own loop (two camera views per window, 3D targets)."""
+    if args.distill_weight != _DISTILL_WEIGHT and not args.distill_from:
+        raise TrainArgumentError(
+            f"--distill-weight {args.distill_weight} weighs a teacher's answer, and no "
+            "--distill-from names one: add --distill-from CKPT, or drop --distill-weight"
+        )
     from robot_retarget.nn.agnostic2d_training import (
         KeypointProgress,
         KeypointTrainConfig,
@@ -428,6 +453,8 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
         loader_workers=args.loader_workers,
         causal_probability=args.causal_probability,
         init_from=args.init_from,
+        distill_from=tuple(args.distill_from),
+        distill_weight=args.distill_weight,
     )
 
     def show(p: KeypointProgress) -> None:

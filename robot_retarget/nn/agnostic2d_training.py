@@ -50,6 +50,7 @@ from robot_retarget.nn.dataset import (
     leg_length,
     load_dataset,
 )
+from robot_retarget.nn.keypoint_teacher import KeypointTeacher, TeacherAnswer
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
 from robot_retarget.nn.models.registry import KEYPOINT_MODELS
 from robot_retarget.nn.motion_augmentation import MotionAugmentation, augmented_window
@@ -95,8 +96,17 @@ class KeypointTrainConfig:
     # static pooling); None: half. A centred model runs every batch whole-window.
     causal_probability: float | None = None
     init_from: str | None = None  # a keypoint checkpoint whose weights start the run
+    # Keypoint checkpoints whose averaged answer is a second target (robot_retarget.nn.
+    # keypoint_teacher), weighted distill_weight against the ground truth's 1 − distill_weight.
+    distill_from: tuple[str, ...] = ()
+    distill_weight: float = 0.5
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.distill_weight <= 1.0:
+            raise KeypointTrainError(
+                f"--distill-weight {self.distill_weight} is not in [0, 1]: pass the teacher's "
+                "share of the target, e.g. 0.5"
+            )
         if self.causal_probability is not None and not 0.0 <= self.causal_probability <= 1.0:
             raise KeypointTrainError(
                 f"--causal-probability {self.causal_probability} is not in [0, 1]: pass a share of "
@@ -315,15 +325,31 @@ def direction_error_deg(pred: torch.Tensor, target: torch.Tensor) -> float:
 
 
 def losses(
-    model: Agnostic2D, batch: RenderedBatch, causal: bool, cfg: KeypointTrainConfig
+    model: Agnostic2D,
+    batch: RenderedBatch,
+    causal: bool,
+    cfg: KeypointTrainConfig,
+    teacher: TeacherAnswer | None = None,
 ) -> dict[str, torch.Tensor]:
+    """The loss terms (module docstring); with ``teacher``, each of the rotation, direction and
+    limb terms is ``1 − cfg.distill_weight`` of its distance to the truth plus
+    ``cfg.distill_weight`` of its distance to the teacher's answer (``total`` weighs the blend;
+    the ``rotation``, ``direction`` and ``limbs`` entries stay the truth's, the ``teacher_*``
+    entries are the teacher's)."""
     d6, motion = model(batch.features, causal)
     pred = rotation_6d_to_matrix(d6)
+    pred_dirs = bone_directions(pred)
     target = quat_to_matrix(batch.targets)
-    rot = ((pred - target) ** 2).sum((-1, -2)).mean()
-    per_bone = ((bone_directions(pred) - bone_directions(target)) ** 2).sum(-1)
-    dirs = per_bone[..., _HAS_LENGTH].mean()
-    limbs = per_bone[..., _SCORED_BONES].mean()
+    truth = _distances(pred, pred_dirs, target, bone_directions(target))
+    rot, dirs, limbs = truth
+    parts: dict[str, torch.Tensor] = {}
+    if teacher is not None:
+        taught = _distances(pred, pred_dirs, teacher.matrices, teacher.directions)
+        parts = dict(
+            zip(("teacher_rotation", "teacher_direction", "teacher_limbs"), taught, strict=True)
+        )
+        w = cfg.distill_weight
+        rot, dirs, limbs = ((1 - w) * a + w * b for a, b in zip(truth, taught, strict=True))
     code = nnf.normalize(motion.mean(dim=-1), dim=-1)
     half = code.shape[0] // 2
     a, p = code[:half], code[half:]
@@ -332,7 +358,24 @@ def losses(
     total = (
         rot + cfg.direction_weight * dirs + cfg.limb_weight * limbs + cfg.triplet_weight * triplet
     )
-    return {"total": total, "rotation": rot, "direction": dirs, "limbs": limbs, "triplet": triplet}
+    return {
+        "total": total,
+        "rotation": truth[0],
+        "direction": truth[1],
+        "limbs": truth[2],
+        "triplet": triplet,
+        **parts,
+    }
+
+
+def _distances(
+    pred: torch.Tensor, pred_dirs: torch.Tensor, target: torch.Tensor, target_dirs: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Mean squared distances of rotation matrices, of bone directions (bones with a length)
+    and of the scored bones' directions."""
+    rot = ((pred - target) ** 2).sum((-1, -2)).mean()
+    per_bone = ((pred_dirs - target_dirs) ** 2).sum(-1)
+    return rot, per_bone[..., _HAS_LENGTH].mean(), per_bone[..., _SCORED_BONES].mean()
 
 
 # ------------------------------------------------------------------------------ files
@@ -426,11 +469,22 @@ def train_agnostic2d(
     if cfg.exclude_subjects:
         dataset = dataset.without(cfg.exclude_subjects)
     train_set, val_set = dataset.split(cfg.validation_subjects)
+    teacher = (
+        KeypointTeacher.load(
+            cfg.distill_from,
+            train_subjects=train_set.subjects,
+            held_out_subjects=(*val_set.subjects, *cfg.exclude_subjects),
+        )
+        if cfg.distill_from
+        else None
+    )
     if fresh:
         clear_run(out)
     (out / "config.json").write_text(json.dumps({**asdict(cfg), "command": command}, indent=2))
     device = _device(cfg.device)
     model = model.to(device)
+    if teacher is not None:
+        teacher.to(device)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, amsgrad=True)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(
         opt, T_max=max(cfg.steps, 1), eta_min=cfg.lr * 0.05
@@ -451,6 +505,11 @@ def train_agnostic2d(
         "receptive_field_frames": model.receptive_field,
         "fps": cfg.fps,
         **({"init_from": cfg.init_from} if cfg.init_from else {}),
+        **(
+            {"distilled_from": teacher.sources, "distill_weight": cfg.distill_weight}
+            if teacher is not None
+            else {}
+        ),
     }
     log_path = out / "log.csv"
     with log_path.open("w", newline="") as fh:
@@ -466,7 +525,8 @@ def train_agnostic2d(
             model.train()
             batch = _on(cpu_batch, device)
             causal = bool(rng.random() < causal_share) and not model.centered
-            parts = losses(model, batch, causal=causal, cfg=cfg)
+            answer = None if teacher is None else teacher.answer(batch.features)
+            parts = losses(model, batch, causal=causal, cfg=cfg, teacher=answer)
             opt.zero_grad()
             parts["total"].backward()  # type: ignore[no-untyped-call]
             torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
