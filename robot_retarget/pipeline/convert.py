@@ -142,7 +142,7 @@ def convert_motion(
     step.set_source(m.skeleton)
     if network is not None:
         step.online = network
-    t_start = time.perf_counter()  # the conversion's wall time includes the branch choice
+    t_start = time.perf_counter()  # the conversion's wall time: branch choice to the feet's hold
     try:
         step.settle_branches = None
         n = m.num_frames
@@ -173,7 +173,6 @@ def convert_motion(
                 progress(done + t + 1, passes * n)
     finally:
         step.settle_branches = None  # never left for the next clip (or a stream) to inherit
-    wall = time.perf_counter() - t_start
     safety.disconnect()
     # The base link's pose in the robot's world (Z up, x forward), feet on the ground, the swing
     # feet lifted as high as the performer's (only the ankles' pitch joints move), then the
@@ -186,6 +185,7 @@ def convert_motion(
         base = floating_base(config, m, q, trunk_frames=trunk)
     if base is not None and hold_double_support:
         q, base = hold_feet(config, m, q, base, trunk_frames=trunk)
+    wall = time.perf_counter() - t_start  # the solve, the lift and the hold
     pos = base.root_pos if base is not None else root_pos
     quat = base.root_quat if base is not None else root_quat
     t0 = 0.0
