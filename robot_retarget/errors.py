@@ -94,6 +94,7 @@ class ModelLoadError(RetargetError):
     ) -> None:
         self.path = None if path is None else str(path)
         self.model = model
+        self.reason = message
         super().__init__(f"{self.path}: {message}" if self.path is not None else message)
 
 

@@ -194,10 +194,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--distill-weight",
         type=float,
-        default=_DISTILL_WEIGHT,
+        default=None,
         metavar="W",
         help="agnostic2d with --distill-from: the teacher's share of the target, the truth's "
-        "1 - W (default 0.5)",
+        f"1 - W (default {_DISTILL_WEIGHT})",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -249,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
             "--mirror-probability, --speed-range and --arm-mix-probability augment agnostic2d's "
             f"windows; {args.model} does not use them (drop them, or pass --model agnostic2d)"
         )
-    distilling = bool(args.distill_from) or args.distill_weight != _DISTILL_WEIGHT
+    distilling = bool(args.distill_from) or args.distill_weight is not None
     if args.causal_probability is not None or args.init_from is not None or distilling:
         raise TrainArgumentError(
             "--causal-probability, --init-from, --distill-from and --distill-weight are "
@@ -401,7 +401,7 @@ def _options_agnostic2d_ignores(args: argparse.Namespace) -> list[str]:
 
 def _run_agnostic2d(args: argparse.Namespace) -> int:
     """The 2D keypoint model has its own loop (two camera views per window, 3D targets)."""
-    if args.distill_weight != _DISTILL_WEIGHT and not args.distill_from:
+    if args.distill_weight is not None and not args.distill_from:
         raise TrainArgumentError(
             f"--distill-weight {args.distill_weight} weighs a teacher's answer, and no "
             "--distill-from names one: add --distill-from CKPT, or drop --distill-weight"
@@ -454,7 +454,7 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
         causal_probability=args.causal_probability,
         init_from=args.init_from,
         distill_from=tuple(args.distill_from),
-        distill_weight=args.distill_weight,
+        distill_weight=_DISTILL_WEIGHT if args.distill_weight is None else args.distill_weight,
     )
 
     def show(p: KeypointProgress) -> None:

@@ -50,6 +50,7 @@ from robot_retarget.nn.dataset import (
     leg_length,
     load_dataset,
 )
+from robot_retarget.nn.keypoint_lineage import check_lineage
 from robot_retarget.nn.keypoint_teacher import KeypointTeacher, TeacherAnswer
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
 from robot_retarget.nn.models.registry import KEYPOINT_MODELS
@@ -454,7 +455,8 @@ def train_agnostic2d(
     ``fresh``: a run already in the folder is deleted once the data have loaded."""
     # The model first: a refused --init-from or option costs no data loading and no files.
     torch.manual_seed(cfg.seed)
-    model = _initial_model(cfg)
+    model, start = _initial_model(cfg)
+    teacher = KeypointTeacher.load(cfg.distill_from, fps=cfg.fps) if cfg.distill_from else None
     if model.centered and cfg.causal_probability is not None:
         raise KeypointTrainError(
             f"--causal-probability {cfg.causal_probability}: a centred model looks ahead and "
@@ -469,15 +471,20 @@ def train_agnostic2d(
     if cfg.exclude_subjects:
         dataset = dataset.without(cfg.exclude_subjects)
     train_set, val_set = dataset.split(cfg.validation_subjects)
-    teacher = (
-        KeypointTeacher.load(
-            cfg.distill_from,
-            train_subjects=train_set.subjects,
-            held_out_subjects=(*val_set.subjects, *cfg.exclude_subjects),
+    if start is not None:
+        check_lineage(
+            "--init-from",
+            str(cfg.init_from),
+            start,
+            validation_subjects=val_set.subjects,
+            excluded_subjects=cfg.exclude_subjects,
         )
-        if cfg.distill_from
-        else None
-    )
+    if teacher is not None:
+        teacher.check_subjects(
+            train_subjects=train_set.subjects,
+            validation_subjects=val_set.subjects,
+            excluded_subjects=cfg.exclude_subjects,
+        )
     if fresh:
         clear_run(out)
     (out / "config.json").write_text(json.dumps({**asdict(cfg), "command": command}, indent=2))
@@ -565,20 +572,21 @@ def train_agnostic2d(
     }
 
 
-def _initial_model(cfg: KeypointTrainConfig) -> Agnostic2D:
+def _initial_model(cfg: KeypointTrainConfig) -> tuple[Agnostic2D, dict[str, Any] | None]:
     """A new model of ``cfg.model_config``, or ``cfg.init_from``'s weights and architecture
-    (fine-tuning: a ``--model-config`` that disagrees with the checkpoint's is refused)."""
+    (fine-tuning: a ``--model-config`` that disagrees with the checkpoint's is refused) and
+    that checkpoint's contents (None for a new model)."""
     config = dict(cfg.model_config)
     if "dilations" in config:
         config["dilations"] = tuple(config["dilations"])
     if cfg.init_from is None:
-        return KEYPOINT_MODELS[Agnostic2D.name](**config)
+        return KEYPOINT_MODELS[Agnostic2D.name](**config), None
     if Path(cfg.init_from).suffix == ".npz":
         raise KeypointTrainError(
             f"--init-from {cfg.init_from} is a numpy runtime, which holds no training state: "
             f"pass its torch checkpoint, {Path(cfg.init_from).with_suffix('.pt')}"
         )
-    model, _ = load_keypoint_checkpoint(cfg.init_from)
+    model, payload = load_keypoint_checkpoint(cfg.init_from)
     stored = model.config()
     differ = {
         k: v for k, v in config.items() if stored.get(k) != (list(v) if isinstance(v, tuple) else v)
@@ -591,7 +599,7 @@ def _initial_model(cfg: KeypointTrainConfig) -> Agnostic2D:
             "--model-config values (the checkpoint's architecture is used)"
         )
     model.train()
-    return model
+    return model, payload
 
 
 def _device(name: str) -> torch.device:

@@ -8,9 +8,10 @@ cannot see that second, but the teacher's answer is a target with less of each w
 ambiguity left in it than the ground truth, which no 2D view decides: the student learns what
 the teacher makes of the window instead of one draw of what the performer did.
 
-The teacher runs on the same batch, whole windows, no gradients. A teacher that trained on the
-student's validation (or excluded) subjects would leak them into the student's selection, so it
-is refused.
+The teacher runs on the same batch, whole windows, no gradients. A teacher that saw the
+student's validation or excluded subjects, itself or through a run it came from, would leak them
+into the student's numbers, so it is refused (robot_retarget.nn.keypoint_lineage), as is one
+trained at another frame rate or named twice.
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import torch
 
-from robot_retarget.errors import RetargetError
+from robot_retarget.errors import ModelLoadError, RetargetError
+from robot_retarget.nn.keypoint_lineage import check_lineage
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
 
 
@@ -44,60 +47,84 @@ class TeacherAnswer:
 class KeypointTeacher:
     """Frozen keypoint models whose answers are averaged (see the module docstring)."""
 
-    def __init__(self, models: Sequence[Agnostic2D], sources: Sequence[dict[str, str]]) -> None:
+    def __init__(
+        self,
+        models: Sequence[Agnostic2D],
+        sources: Sequence[dict[str, str]],
+        payloads: Sequence[dict[str, Any]] | None = None,
+    ) -> None:
+        """``models`` with their ``sources`` (file and sha256, for the student's metadata) and
+        checkpoint contents ``payloads`` (for :meth:`check_subjects`)."""
         if not models:
             raise ValueError("a teacher needs at least one model")
         self.models = list(models)
         self.sources = [dict(s) for s in sources]
+        self.payloads = [dict(p) for p in payloads] if payloads is not None else [{}] * len(models)
         for m in self.models:
             m.eval()
             for p in m.parameters():
                 p.requires_grad_(False)
 
     @classmethod
-    def load(
-        cls,
-        paths: Sequence[str | Path],
-        *,
-        train_subjects: Sequence[str],
-        held_out_subjects: Sequence[str],
-    ) -> KeypointTeacher:
-        """The checkpoints at ``paths``; each must have trained on none of ``held_out_subjects``
-        (the student's validation and excluded subjects) and on no subject outside
-        ``train_subjects``."""
+    def load(cls, paths: Sequence[str | Path], *, fps: float) -> KeypointTeacher:
+        """The keypoint checkpoints at ``paths`` (trained at ``fps``, each file once); which
+        subjects they saw is checked by :meth:`check_subjects` once the run's split is known."""
         from robot_retarget.nn.agnostic2d_training import load_keypoint_checkpoint
 
         models: list[Agnostic2D] = []
         sources: list[dict[str, str]] = []
+        payloads: list[dict[str, Any]] = []
         for path in paths:
-            model, payload = load_keypoint_checkpoint(path)
-            taught = payload.get("metadata", {}).get("train_subjects")
-            if taught is None:
+            if Path(path).suffix == ".npz":
                 raise TeacherError(
-                    f"--distill-from {path}: the checkpoint does not say which subjects it "
-                    "trained on, so it may have seen this run's validation subjects; pass a "
-                    "checkpoint written by train"
+                    f"--distill-from {path} is a numpy runtime, which the training cannot run: "
+                    f"pass its torch checkpoint, {Path(path).with_suffix('.pt')}"
                 )
-            leaked = sorted(set(taught) & set(held_out_subjects))
-            if leaked:
+            try:
+                model, payload = load_keypoint_checkpoint(path)
+            except ModelLoadError as exc:
                 raise TeacherError(
-                    f"--distill-from {path} trained on {leaked}, which this run validates on or "
-                    "excludes: its answers would leak them; pass a teacher trained without them"
+                    f"--distill-from {path}: {exc.reason}; pass a keypoint model's .pt written "
+                    "by train --model agnostic2d"
+                ) from None
+            taught_fps = payload.get("metadata", {}).get("fps")
+            if taught_fps is not None and abs(float(taught_fps) - fps) > 1e-9:
+                raise TeacherError(
+                    f"--distill-from {path} was trained at {taught_fps:g} fps and would see "
+                    f"this run's {fps:g} fps windows at the wrong pace: pass --fps {taught_fps:g} "
+                    "or a teacher trained at this rate"
                 )
-            unseen = sorted(set(taught) - set(train_subjects))
-            if unseen:
+            digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+            twin = next((s["checkpoint"] for s in sources if s["checkpoint_sha256"] == digest), "")
+            if twin:
                 raise TeacherError(
-                    f"--distill-from {path} trained on {unseen}, which this run does not train "
-                    "on; pass a teacher trained on this run's training subjects"
+                    f"--distill-from {path} is the same file as {twin}: it would count twice in "
+                    "the average; pass each teacher once"
                 )
             models.append(model)
-            sources.append(
-                {
-                    "checkpoint": str(path),
-                    "checkpoint_sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
-                }
+            payloads.append(payload)
+            sources.append({"checkpoint": str(path), "checkpoint_sha256": digest})
+        return cls(models, sources, payloads)
+
+    def check_subjects(
+        self,
+        *,
+        train_subjects: Sequence[str],
+        validation_subjects: Sequence[str],
+        excluded_subjects: Sequence[str],
+    ) -> None:
+        """Refuse a teacher (:class:`~robot_retarget.nn.keypoint_lineage.LineageError`) that,
+        through any run it came from, trained on the run's validation or excluded subjects or
+        on subjects it does not train on, or was chosen on its excluded ones."""
+        for source, payload in zip(self.sources, self.payloads, strict=True):
+            check_lineage(
+                "--distill-from",
+                source["checkpoint"],
+                payload,
+                validation_subjects=validation_subjects,
+                excluded_subjects=excluded_subjects,
+                train_subjects=train_subjects,
             )
-        return cls(models, sources)
 
     def to(self, device: torch.device) -> KeypointTeacher:
         self.models = [m.to(device) for m in self.models]
