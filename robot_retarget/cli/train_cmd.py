@@ -188,8 +188,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="CKPT",
         help="agnostic2d: a keypoint checkpoint whose answer on each training window is a second "
-        "target (knowledge distillation); repeat for several, their answers averaged (e.g. "
-        "convert's four centred models, robot_retarget/data/checkpoints/agnostic2d_clip*.pt)",
+        "target (knowledge distillation); repeat the option, one file each, for several, their "
+        "answers averaged (e.g. convert's four centred models: --distill-from "
+        "robot_retarget/data/checkpoints/agnostic2d_clip.pt --distill-from …-s1.pt …)",
     )
     parser.add_argument(
         "--distill-weight",
