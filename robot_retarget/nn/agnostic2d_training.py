@@ -623,16 +623,23 @@ def _validate(model: Agnostic2D, batch: RenderedBatch) -> dict[str, float]:
     return out
 
 
-def is_keypoint_checkpoint(path: str | Path) -> bool:
-    """Whether ``path`` is a .pt file written by :func:`save_keypoint_checkpoint`."""
+def keypoint_payload(path: str | Path) -> dict[str, Any] | None:
+    """The contents of ``path`` if it is a .pt file written by :func:`save_keypoint_checkpoint`,
+    else None (a missing, foreign or damaged file: for the other loaders to report)."""
     p = Path(path)
     if not (p.is_file() and p.suffix == ".pt"):
-        return False
+        return None
     try:
         payload = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception:  # foreign or damaged files are for the other loaders to report
-        return False
-    return isinstance(payload, dict) and payload.get("format") == CHECKPOINT_FORMAT
+    except Exception:  # torch raises many types for foreign files
+        return None
+    ours = isinstance(payload, dict) and payload.get("format") == CHECKPOINT_FORMAT
+    return payload if ours else None
+
+
+def is_keypoint_checkpoint(path: str | Path) -> bool:
+    """Whether ``path`` is a .pt file written by :func:`save_keypoint_checkpoint`."""
+    return keypoint_payload(path) is not None
 
 
 def export_keypoint_checkpoint(

@@ -40,18 +40,10 @@ def _parents(meta: dict[str, Any]) -> list[str]:
     return parents
 
 
-def _read(path: Path) -> dict[str, Any] | None:
-    import torch
-
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception:  # a foreign or damaged file: not a checkpoint this project wrote
-        return None
-    return payload if isinstance(payload, dict) else None
-
-
 def lineage(payload: dict[str, Any]) -> Lineage:
     """The subjects ``payload`` (a keypoint checkpoint's contents) and its ancestors saw."""
+    from robot_retarget.nn.agnostic2d_training import keypoint_payload  # it imports this module
+
     trained: set[str] = set()
     validated: set[str] = set()
     unfollowed: list[str] = []
@@ -68,7 +60,7 @@ def lineage(payload: dict[str, Any]) -> Lineage:
             if path in followed:
                 continue
             followed.add(path)
-            found = _read(path) if path.is_file() else None
+            found = keypoint_payload(path)
             if found is None:
                 unfollowed.append(parent)
             else:
