@@ -419,9 +419,14 @@ def clip_error(report: ClipReport) -> str:
     return error if error.startswith((f"{clip}:", f"{clip},")) else f"{clip}: {error}"
 
 
+def _lead_in(frames: int) -> str:
+    return f" ({frames} of them the lead-in's)" if frames else ""
+
+
 def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
     ok = [r for r in reports if r.error is None]
     frames = sum(r.frames for r in ok)
+    solved = sum(r.solved_frames for r in ok)  # the rate leaves out --lead-in's frames
     compute = sum(r.wall_s for r in ok)
     lines = ["", "summary:"]
     for r in reports:
@@ -429,8 +434,8 @@ def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
             lines.append(f"  FAILED {clip_error(r)}")
         else:
             lines.append(
-                f"  {r.out}: {r.frames} frames, {r.wall_s:.2f} s "
-                f"({r.frames / max(r.wall_s, 1e-9):.0f} frames/s), limits "
+                f"  {r.out}: {r.frames} frames{_lead_in(r.lead_in_frames)}, {r.wall_s:.2f} s "
+                f"({r.solved_frames / max(r.wall_s, 1e-9):.0f} frames/s), limits "
                 f"{'respected' if r.limits_ok else 'VIOLATED'}, safety clipped "
                 f"{r.clipped_commands} commands ({r.clipped_joints} joint values), "
                 f"{r.fallbacks} solver fallbacks"
@@ -439,13 +444,14 @@ def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
         lines.append(f"  total: 0 of {len(reports)} clips converted")
         return "\n".join(lines)
     lines.append(
-        f"  total: {len(ok)} of {len(reports)} clips, {frames} frames, wall time "
-        f"{total_wall_s:.2f} s, {frames / max(compute, 1e-9):.0f} frames/s, limits "
+        f"  total: {len(ok)} of {len(reports)} clips, {frames} frames"
+        f"{_lead_in(frames - solved)}, wall time "
+        f"{total_wall_s:.2f} s, {solved / max(compute, 1e-9):.0f} frames/s, limits "
         f"{'respected' if all(r.limits_ok for r in ok) else 'VIOLATED'}, safety clipped "
         f"{sum(r.clipped_commands for r in ok)} commands, "
         f"{sum(r.fallbacks for r in ok)} solver fallbacks"
     )
-    warning = fallback_warning(sum(r.fallbacks for r in ok), frames)
+    warning = fallback_warning(sum(r.fallbacks for r in ok), solved)
     if warning is not None:
         lines.append(f"  {warning}")
     return "\n".join(lines)

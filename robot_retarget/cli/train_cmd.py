@@ -8,10 +8,12 @@ continues a run from its last checkpoint with the stored settings, or with a lar
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import shlex
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -203,6 +205,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+@contextlib.contextmanager
+def _run_folder(args: argparse.Namespace) -> Iterator[None]:
+    """Claim --out (:func:`_claim_run_folder`) for the training inside; a run refused before
+    it wrote anything leaves no empty folder behind where there was none."""
+    out = Path(args.out)
+    existed = out.exists()
+    _claim_run_folder(args)
+    try:
+        yield
+    except BaseException:
+        if not existed:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only while empty
+        raise
+
+
 def _claim_run_folder(args: argparse.Namespace) -> None:
     """Before any work: --steps is positive, and --out is a folder the run may write — not one
     that holds another run unless --resume continues it or --force replaces it (deleted by the
@@ -236,6 +254,24 @@ def _bar(done: int, total: int, width: int = 24) -> str:
     return "[" + "#" * filled + "." * (width - filled) + "]"
 
 
+def _agnostic2d_options_given(args: argparse.Namespace) -> list[str]:
+    """The keypoint model's options this command line sets, in --help's order."""
+    given = {
+        "--mirror-probability": args.mirror_probability != 0.0,
+        "--speed-range": args.speed_range != "1,1",
+        "--arm-mix-probability": bool(args.arm_mix_probability),
+        "--causal-probability": args.causal_probability is not None,
+        "--init-from": args.init_from is not None,
+        "--distill-from": bool(args.distill_from),
+        "--distill-weight": args.distill_weight is not None,
+    }
+    return [option for option, set_ in given.items() if set_]
+
+
+def _and(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
+
+
 def run(args: argparse.Namespace) -> int:
     import torch
 
@@ -245,17 +281,12 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     if args.model == "agnostic2d":
         return _run_agnostic2d(args)
-    if args.mirror_probability != 0.0 or args.speed_range != "1,1" or args.arm_mix_probability:
+    given = _agnostic2d_options_given(args)
+    if given:
         raise TrainArgumentError(
-            "--mirror-probability, --speed-range and --arm-mix-probability augment agnostic2d's "
-            f"windows; {args.model} does not use them (drop them, or pass --model agnostic2d)"
-        )
-    distilling = bool(args.distill_from) or args.distill_weight is not None
-    if args.causal_probability is not None or args.init_from is not None or distilling:
-        raise TrainArgumentError(
-            "--causal-probability, --init-from, --distill-from and --distill-weight are "
-            "agnostic2d's; "
-            f"{args.model} does not use them (drop them, or pass --model agnostic2d)"
+            f"{_and(given)} {'is' if len(given) == 1 else 'are'} agnostic2d's; {args.model} "
+            f"does not use {'it' if len(given) == 1 else 'them'} (drop "
+            f"{'it' if len(given) == 1 else 'them'}, or pass --model agnostic2d)"
         )
     subjects = tuple(s for s in args.val_subjects.split(",") if s)
     robots = tuple(r for r in args.robots.split(",") if r)
@@ -314,8 +345,8 @@ def run(args: argparse.Namespace) -> int:
         )
 
     command = _command_line()
-    _claim_run_folder(args)
-    result = train(config, resume=args.resume, progress=show, command=command, fresh=args.force)
+    with _run_folder(args):
+        result = train(config, resume=args.resume, progress=show, command=command, fresh=args.force)
     if os.environ.get("RANK", "0") != "0":
         return 0  # torchrun: rank 0 exports and reports the one run
     runtime = _export_best(result.best_path)
@@ -473,7 +504,7 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
             last=p.validation is not None,
         )
 
-    _claim_run_folder(args)
-    summary = train_agnostic2d(config, progress=show, command=_command_line(), fresh=args.force)
+    with _run_folder(args):
+        summary = train_agnostic2d(config, progress=show, command=_command_line(), fresh=args.force)
     print(json.dumps(summary))
     return 0

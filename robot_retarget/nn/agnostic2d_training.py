@@ -41,7 +41,7 @@ from robot_retarget.geometry import quaternion as quat
 from robot_retarget.keypoints.normalize import normalize_sequences
 from robot_retarget.keypoints.synthetic import CameraRange, EstimatorNoise, render_keypoints
 from robot_retarget.keypoints.virtual_camera import VirtualCamera, heading_quat
-from robot_retarget.nn.checkpoint import unreadable_reason
+from robot_retarget.nn.checkpoint import foreign_file, unreadable_reason
 from robot_retarget.nn.dataset import (
     Augmentation,
     Clip,
@@ -413,6 +413,9 @@ def save_keypoint_checkpoint(
 def load_keypoint_checkpoint(path: str | Path) -> tuple[Agnostic2D, dict[str, Any]]:
     """The model (eval mode) and the checkpoint's payload; ModelLoadError says what is wrong."""
     source = Path(path)
+    foreign = foreign_file(source)
+    if foreign is not None:
+        raise ModelLoadError(foreign, path=source)
     try:
         payload = torch.load(source, map_location="cpu", weights_only=True)
     except FileNotFoundError:

@@ -82,6 +82,23 @@ def save_checkpoint(
     return target
 
 
+def foreign_file(path: Path) -> str | None:
+    """What ``path`` is, where it is plainly not a checkpoint: a folder, or a motion or text
+    file (torch's own error for those is a paragraph about pickles); else None."""
+    if path.is_dir():
+        return "a folder, not a checkpoint file"
+    try:
+        with path.open("rb") as f:
+            head = f.read(64).lstrip()
+    except OSError:
+        return None
+    if head.upper().startswith(b"HIERARCHY"):
+        return "a BVH motion clip, not a checkpoint"
+    if head[:1] in (b"{", b"["):
+        return "a JSON file, not a checkpoint"
+    return None
+
+
 def unreadable_reason(exc: BaseException) -> str:
     """torch.load's failure in one short line (its messages run to paragraphs)."""
     lines = str(exc).strip().splitlines()
@@ -94,6 +111,9 @@ def unreadable_reason(exc: BaseException) -> str:
 def load_checkpoint(path: str | Path, *, expected_data_hash: str | None = None) -> LoadedCheckpoint:
     """Rebuild a model from ``path``; raises ModelLoadError saying what is wrong with the file."""
     source = Path(path)
+    foreign = foreign_file(source)
+    if foreign is not None:
+        raise ModelLoadError(f"{foreign}; pass a .pt file written by train", path=source)
     if not source.is_file():
         raise ModelLoadError(
             "no such checkpoint file; check the path or train a model first", path=source

@@ -106,6 +106,11 @@ class ClipReport:
     position_excess_rad: float = 0.0
     velocity_excess_rad: float = 0.0
     cpu_s: float = 0.0  # the converting process's CPU seconds for this clip (read to written)
+    lead_in_frames: int = 0  # of ``frames``, the --lead-in's: written, not solved
+
+    @property
+    def solved_frames(self) -> int:
+        return self.frames - self.lead_in_frames
 
 
 class ClipConverter:
@@ -242,6 +247,7 @@ class ClipConverter:
             fallbacks=result.fallbacks,
             position_excess_rad=result.limits.position_excess_rad,
             velocity_excess_rad=result.limits.velocity_excess_rad,
+            lead_in_frames=result.lead_in_frames,
         )
 
     def _read_on_own_skeleton(

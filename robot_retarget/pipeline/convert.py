@@ -24,15 +24,14 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.array_types import FloatArray
 from robot_retarget.hardware.safety import SafetyLayer
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.pipeline.double_support import hold_double_support as hold_feet
 from robot_retarget.pipeline.floating_base import FloatingBase, floating_base
+from robot_retarget.pipeline.lead_in import lead_in, lead_in_base
 from robot_retarget.pipeline.recorder import RecordingBackend
-from robot_retarget.pipeline.start_ramp import toward
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.pipeline.swing_clearance import clear_swing_feet
 from robot_retarget.robot.config import RobotConfig
@@ -89,6 +88,7 @@ class ClipResult:
     safety_commands_clipped: int
     safety_joint_clips: int
     fallbacks: int
+    lead_in_frames: int = 0  # of the trajectory's frames, the lead-in's (not solved)
 
     @property
     def frames(self) -> int:
@@ -189,13 +189,15 @@ def convert_motion(
     pos = base.root_pos if base is not None else root_pos
     quat = base.root_quat if base is not None else root_quat
     t0 = 0.0
+    k = 0
     limits = check_limits(config, q, dt)
     if lead_in_speed_fraction is not None and n:
         lead = lead_in(config, q[0], lead_in_speed_fraction * config.max_velocity * dt)
         k = len(lead)
+        lead_pos, lead_quat = lead_in_base(config, lead, q[0], pos[0], quat[0])
         q = np.vstack([lead, q])
-        pos = np.vstack([np.repeat(pos[:1], k, axis=0), pos])  # the base holds its first pose
-        quat = np.vstack([np.repeat(quat[:1], k, axis=0), quat])
+        pos = np.vstack([lead_pos, pos])
+        quat = np.vstack([lead_quat, quat])
         frame_ms = np.concatenate([np.zeros(k), frame_ms])
         t0 = -k * dt
         limits = check_limits(config, q, dt, q_start=config.init_pose)
@@ -215,18 +217,8 @@ def convert_motion(
         safety_commands_clipped=safety.stats.commands_clipped,
         safety_joint_clips=safety.stats.position_clips + safety.stats.step_clips,
         fallbacks=step.stats.fallbacks,
+        lead_in_frames=k,
     )
-
-
-def lead_in(config: RobotConfig, q_first: FloatArray, step_rad: FloatArray) -> FloatArray:
-    """(K, J) commands from the init pose (excluded) to just before ``q_first``, each joint
-    moving at most ``step_rad`` per frame: the robot's move into a file's first frame."""
-    out = []
-    q = np.array(config.init_pose, dtype=np.float64)
-    while np.any(np.abs(q_first - q) > step_rad):
-        q = toward(q, q_first, step_rad)
-        out.append(q)
-    return np.array(out).reshape(-1, config.num_joints)
 
 
 def output_paths(input_path: Path, out: Path, suffix: str) -> list[tuple[Path, Path]]:

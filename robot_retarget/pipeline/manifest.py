@@ -65,6 +65,7 @@ class ClipEntry:
     clipped_joints: int = 0
     fallbacks: int = 0
     error: str | None = None
+    lead_in_frames: int = 0
 
 
 class Manifest:
@@ -166,4 +167,5 @@ _REPORT_FIELDS = (
     "clipped_joints",
     "fallbacks",
     "error",
+    "lead_in_frames",
 )

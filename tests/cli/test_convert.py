@@ -293,3 +293,21 @@ def test_feet_as_solved_leaves_the_legs_as_the_solve_put_them(
     moved = {lifted.joint_names[j] for j in np.flatnonzero(np.abs(lifted.q - solved.q).max(0))}
     assert {"l_ank_pitch", "r_ank_pitch"} <= moved
     assert all(name.split("_")[1] in ("hip", "knee", "ank") for name in moved), moved
+
+
+def test_the_summary_rates_the_solved_frames_and_counts_the_lead_in_apart(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "t.npz"
+    assert _run(str(FIXTURES / "tiny_walk.bvh"), "--out", str(out), "--lead-in") == 0
+    traj = RobotTrajectory.read(out)
+    lead = round(-traj.t0 * traj.fps)
+    assert lead > 0
+    summary = capsys.readouterr().out
+    assert f"{traj.num_frames} frames ({lead} of them the lead-in's)" in summary
+    line = next(s for s in summary.splitlines() if s.strip().startswith(str(out)))
+    wall_s = float(line.split(", ")[1].split(" s ")[0])
+    rate = float(line.split("(")[2].split(" frames/s")[0])
+    solved = traj.num_frames - lead  # the rate is theirs, not the written frames' (the wall
+    # time is printed to 10 ms, so nearer the one than the other)
+    assert abs(rate - solved / wall_s) < abs(rate - traj.num_frames / wall_s), (rate, line)

@@ -216,7 +216,7 @@ def test_a_distilled_run_records_its_teacher_and_refuses_one_that_saw_its_valida
         with pytest.raises(LineageError, match=f"{option} .*" + r"trained on \['06', '08', '12'\]"):
             train_cmd.run(parser.parse_args(_tiny_args(shared_data_dir, refused, option,
                                                        str(leaky / "best.pt"))))  # fmt: skip
-        assert not any(refused.iterdir())
+        assert not refused.exists()  # refused before it wrote a file: not even its folder
     # Chosen on 13 and trained without 06, 08, 12: refused only where 13 is the test fold.
     chosen = tmp_path / "chosen"
     assert train_cmd.run(parser.parse_args(_tiny_args(shared_data_dir, chosen, "--val-subjects",
@@ -227,6 +227,13 @@ def test_a_distilled_run_records_its_teacher_and_refuses_one_that_saw_its_valida
     with pytest.raises(train_cmd.TrainArgumentError, match="no --distill-from names one"):
         train_cmd.run(parser.parse_args(_tiny_args(shared_data_dir, tmp_path / "w",
                                                    "--distill-weight", "0.7")))  # fmt: skip
-    with pytest.raises(train_cmd.TrainArgumentError, match="--distill-from and --distill-weight"):
+    only_distill = r"^--distill-from is agnostic2d's; residual does not use it \(drop it"
+    with pytest.raises(train_cmd.TrainArgumentError, match=only_distill):
         train_cmd.run(parser.parse_args(["--model", "residual", "--out", str(tmp_path / "r"),
                                          "--distill-from", str(teacher / "best.pt")]))  # fmt: skip
+    two = r"^--speed-range and --distill-weight are agnostic2d's; pmnet does not use them"
+    with pytest.raises(train_cmd.TrainArgumentError, match=two):
+        train_cmd.run(parser.parse_args(["--model", "pmnet", "--out", str(tmp_path / "p"),
+                                         "--distill-weight", "0.3",
+                                         "--speed-range", "0.9,1.1"]))  # fmt: skip
+    assert not (tmp_path / "r").exists()  # a refused run leaves no folder behind
