@@ -119,18 +119,3 @@ def test_a_converted_real_clip_follows_the_performer(shared_data_dir: Path) -> N
     still = np.degrees(segment_angles(human_body_points(human), body.body_points(held, base)))
     assert converted.mean() < 15.0, converted.mean()  # measured: 9.3° (held still: 44°)
     assert converted.mean() < 0.5 * still.mean(), (converted.mean(), still.mean())
-
-
-def test_a_lead_in_comes_before_t0_and_leaves_the_clip_unchanged(
-    step: RetargetStep, demo: HumanMotion, op3: RobotConfig
-) -> None:
-    plain = convert_motion(demo, step, fps=30.0).trajectory
-    led = convert_motion(demo, step, fps=30.0, lead_in_speed_fraction=0.25)
-    traj = led.trajectory
-    k = traj.num_frames - plain.num_frames
-    assert k > 5
-    assert traj.t0 == pytest.approx(-k / 30.0)
-    np.testing.assert_array_equal(traj.q[k:], plain.q)  # the clip itself is unchanged
-    steps = np.abs(np.diff(np.vstack([op3.init_pose, traj.q[: k + 1]]), axis=0))
-    assert np.all(steps <= 0.25 * op3.max_velocity / 30.0 + 1e-12)  # at the ramp speed
-    assert led.limits.ok  # checked from the init pose

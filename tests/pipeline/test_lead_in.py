@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -22,7 +23,7 @@ def _tilt(config: RobotConfig, root_quat: np.ndarray) -> float:
     return float(np.arccos(np.clip(up[2], -1.0, 1.0)))
 
 
-def test_the_lead_in_keeps_the_feet_on_the_floor(
+def test_a_lead_in_comes_before_t0_at_the_ramp_speed_and_keeps_the_feet_on_the_floor(
     step: RetargetStep, demo: HumanMotion, op3: RobotConfig
 ) -> None:
     plain = convert_motion(demo, step, fps=30.0).trajectory
@@ -30,6 +31,11 @@ def test_the_lead_in_keeps_the_feet_on_the_floor(
     traj = result.trajectory
     k = result.lead_in_frames
     assert k == traj.num_frames - plain.num_frames > 5
+    assert traj.t0 == pytest.approx(-k / 30.0)
+    np.testing.assert_array_equal(traj.q[k:], plain.q)  # the clip itself is unchanged
+    steps = np.abs(np.diff(np.vstack([op3.init_pose, traj.q[: k + 1]]), axis=0))
+    assert np.all(steps <= 0.25 * op3.max_velocity / 30.0 + 1e-12)  # at the ramp speed
+    assert result.limits.ok  # checked from the init pose
     assert traj.root_pos is not None
     assert traj.root_quat is not None
     assert plain.root_pos is not None
