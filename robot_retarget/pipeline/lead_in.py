@@ -71,18 +71,18 @@ def lead_in_base(
     k = len(lead)
     if k == 0:
         return np.empty((0, 3)), np.empty((0, 4))
-    q0 = np.asarray(quat_first, dtype=np.float64)
-    rot_first = quat.to_matrix(q0)
-    up_quat = quat.from_matrix(upright_rotation(config, rot_first))
+    turned = np.asarray(quat_first, dtype=np.float64)
+    rot_first = quat.to_matrix(turned)
+    upright = quat.from_matrix(upright_rotation(config, rot_first))
     share = np.arange(1, k + 1) / (k + 1)  # of the move made at each lead-in frame
-    quats = quat.slerp(up_quat, q0, share)  # the shorter way round…
-    quats = quats * np.sign(float(quats[-1] @ q0) or 1.0)  # …and on the first frame's sign
+    quats = quat.slerp(upright, turned, share)  # the shorter way round…
+    quats = quats * np.sign(float(quats[-1] @ turned) or 1.0)  # …on the first frame's sign
     rots = quat.to_matrix(quats)
 
     kin = RobotKinematics(config)
     points = list(foot_points(config))
-    q0_row = np.asarray(q_first, dtype=np.float64)[None]
-    first_world = kin.frame_positions(q0_row, points)[0] @ rot_first.T + np.asarray(
+    first_row = np.asarray(q_first, dtype=np.float64)[None]
+    first_world = kin.frame_positions(first_row, points)[0] @ rot_first.T + np.asarray(
         pos_first, dtype=np.float64
     )  # (F, 3)
     floor_first = float(first_world[:, 2].min())
