@@ -1,9 +1,12 @@
-"""``inspect FILE|DIR...``: describe motion files (skeleton family, mapping, frames, units).
+"""``inspect FILE|DIR...``: describe motion files (skeleton family, mapping, frames, units),
+robot trajectories (.npz / .csv / .json: robot, lead-in, base, limits; see
+:mod:`robot_retarget.cli.trajectory_facts`) and 2D keypoint input (frames, image, what the
+estimator missed; :mod:`robot_retarget.cli.keypoint_facts`).
 
-A folder stands for every .bvh file under it (subfolders included, sorted by path), as
-``convert`` reads folders. Each file is reported on its own; a file that cannot be read, a
-missing path or a folder without .bvh files gets a one-line error on stderr and the others are
-still reported. The exit code is 1 if any failed.
+A folder (other than an OpenPose JSON folder) stands for every .bvh file under it (subfolders
+included, sorted by path), as ``convert`` reads folders. Each file is reported on its own; a
+file that cannot be read, a missing path or a folder without .bvh files gets a one-line error
+on stderr and the others are still reported. The exit code is 1 if any failed.
 """
 
 from __future__ import annotations
@@ -14,6 +17,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from robot_retarget.cli.keypoint_facts import (
+    describe_keypoints,
+    format_keypoints_text,
+    is_keypoint_file,
+)
+from robot_retarget.cli.trajectory_facts import (
+    describe_trajectory,
+    format_trajectory_text,
+    is_trajectory_file,
+)
 from robot_retarget.errors import MotionFormatError, RetargetError
 from robot_retarget.motion.bvh import BvhClip, read_bvh
 from robot_retarget.motion.canonicalize import canonicalize
@@ -24,12 +37,17 @@ from robot_retarget.skeleton.armatures import TopologyError
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 
 NAME = "inspect"
-HELP = "Describe motion files: skeleton, mapping, fps, units."
+HELP = "Describe motion files, keypoint input and robot trajectories."
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "files", nargs="+", metavar="FILE|DIR", help="BVH files, or folders of BVH files"
+        "files",
+        nargs="+",
+        metavar="FILE|DIR",
+        help="BVH files, folders of BVH files, 2D keypoint input (an OpenPose JSON folder, "
+        "MediaPipe .json, COCO-17 .jsonl) or robot trajectories (.npz, .csv, .json with "
+        "joint_names: robot, lead-in, base, feet, limits)",
     )
     parser.add_argument(
         "--json", action="store_true", help="print a JSON list, one object per file"
@@ -41,6 +59,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--keep-tpose", action="store_true", help="keep a synthetic first T-pose frame"
+    )
+    parser.add_argument(
+        "--robot",
+        help="the robot a trajectory is for (default: the bundled robot with exactly its joints)",
     )
 
 
@@ -116,7 +138,7 @@ def expand_paths(paths: list[str]) -> list[str | MotionFormatError]:
     out: list[str | MotionFormatError] = []
     for path in paths:
         p = Path(path)
-        if not p.is_dir():
+        if not p.is_dir() or is_keypoint_file(path):
             out.append(path)
             continue
         clips = sorted(c for c in p.rglob("*") if c.suffix.lower() == ".bvh" and c.is_file())
@@ -133,7 +155,15 @@ def run(args: argparse.Namespace) -> int:
         try:
             if isinstance(path, MotionFormatError):
                 raise path
-            info = describe(path, unit=args.unit, keep_tpose=args.keep_tpose)
+            if is_keypoint_file(path):
+                info = describe_keypoints(path)
+                text = format_keypoints_text(info)
+            elif is_trajectory_file(path):
+                info = describe_trajectory(path, robot=args.robot)
+                text = format_trajectory_text(info)
+            else:
+                info = describe(path, unit=args.unit, keep_tpose=args.keep_tpose)
+                text = format_text(info)
         except RetargetError as exc:
             failed += 1
             print(f"error: {exc}", file=sys.stderr)
@@ -141,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             reports.append(info)
         else:
-            print(format_text(info))
+            print(text)
     if args.json:
         print(json.dumps(reports, indent=2))
     return 1 if failed else 0
