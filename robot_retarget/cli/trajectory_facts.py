@@ -10,12 +10,13 @@ the robot's init pose when the file has a lead-in (it starts there), else betwee
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from robot_retarget.errors import RetargetError
+from robot_retarget.errors import MotionFormatError, RetargetError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.viewer.robot_match import RobotGuessError
@@ -34,6 +35,12 @@ class TrajectoryRobotError(RetargetError):
 def describe_trajectory(path: str, *, robot: str | None = None) -> dict[str, Any]:
     """Facts about one trajectory file, as JSON-ready values (``robot`` None and ``robot_why``
     set where no robot could be told: the limits and feet are then left out)."""
+    if _is_model_runtime(Path(path)):
+        raise MotionFormatError(
+            "a model's numpy runtime (written by train or export), not a trajectory; pass it "
+            "to convert or stream as --model",
+            path=Path(path),
+        )
     traj = RobotTrajectory.read(path)
     lead_in = int(np.count_nonzero(traj.times_s() < -1e-9))
     info: dict[str, Any] = {
@@ -62,6 +69,18 @@ def describe_trajectory(path: str, *, robot: str | None = None) -> dict[str, Any
     if traj.root_pos is not None and traj.root_quat is not None:
         info.update(_base(config, q, traj.root_pos, traj.root_quat, lead_in))
     return info
+
+
+def _is_model_runtime(path: Path) -> bool:
+    from robot_retarget.runtime.npz_file import META_KEY
+
+    if path.suffix.lower() != ".npz":
+        return False
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return f"{META_KEY}.npy" in archive.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return False  # the trajectory reader names what is wrong with it
 
 
 def _robot(traj: RobotTrajectory, name: str | None) -> RobotConfig:

@@ -110,3 +110,12 @@ def test_a_broken_keypoint_file_is_a_one_line_error(
     err = capsys.readouterr().err
     assert err.startswith(f"error: {bad}: not a JSON document")
     assert len(err.strip().splitlines()) == 1
+
+
+def test_a_model_runtime_is_named_as_one(capsys: pytest.CaptureFixture[str]) -> None:
+    from robot_retarget.runtime.loader import shipped_runtimes
+
+    runtime = shipped_runtimes()["default"]
+    assert main(["inspect", str(runtime)]) == 1
+    err = capsys.readouterr().err
+    assert "a model's numpy runtime (written by train or export), not a trajectory" in err
