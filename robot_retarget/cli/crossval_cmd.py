@@ -14,6 +14,7 @@ import json
 import sys
 
 from robot_retarget.cli.data_dir import add_data_argument
+from robot_retarget.cli.number_args import positive_float, positive_int
 
 NAME = "crossval"
 HELP = "Subject-level cross-validation: train per fold, score unseen performers."
@@ -55,7 +56,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--batch-size", type=int, default=32)
     parser.add_argument("--window", type=int, default=DEFAULT_WINDOW_FRAMES, help="frames")
-    parser.add_argument("--fps", type=float, default=DEFAULT_FPS, help="common frame rate")
+    parser.add_argument("--fps", type=positive_float, default=DEFAULT_FPS, help="common frame rate")
     parser.add_argument("--lr", type=float, default=LEARNING_RATE, help="Adam learning rate")
     parser.add_argument("--seed", type=int, default=0, help="training seed")
     parser.add_argument("--val-every", type=int, default=500, help="steps between validations")
@@ -67,7 +68,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="KEY=VALUE",
         help="model constructor argument (as train --model-config; repeatable)",
     )
-    parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
+    parser.add_argument(
+        "--max-frames", type=positive_int, default=None, help="first frames per clip"
+    )
     parser.add_argument("--eval-seed", type=int, default=0, help="seed of the denoising noise")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     parser.add_argument("--device", default="cpu", help="training device: cpu or cuda")

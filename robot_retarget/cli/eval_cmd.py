@@ -17,6 +17,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from robot_retarget.cli.data_dir import add_data_argument
+from robot_retarget.cli.number_args import positive_float, positive_int
 
 if TYPE_CHECKING:  # torch is imported by the command, not by the CLI's import
     from robot_retarget.array_types import FloatArray
@@ -52,8 +53,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "(default: the training split's validation subjects; a folder holding none of them, "
         "other performers or your own recordings, is scored whole)",
     )
-    parser.add_argument("--fps", type=float, default=None, help="frame rate (default 30)")
-    parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
+    parser.add_argument("--fps", type=positive_float, default=None, help="frame rate (default 30)")
+    parser.add_argument(
+        "--max-frames", type=positive_int, default=None, help="first frames per clip"
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the denoising noise")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")

@@ -15,6 +15,7 @@ from typing import Any
 
 from robot_retarget.cli.data_dir import add_data_argument
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
+from robot_retarget.cli.number_args import positive_int
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
 NAME = "eval-robot"
@@ -46,7 +47,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", action="store_true", help="print JSON instead of markdown")
     parser.add_argument("--plots", default=None, metavar="DIR", help="write PNG plots here")
-    parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
+    parser.add_argument(
+        "--max-frames", type=positive_int, default=None, help="first frames per clip"
+    )
     parser.add_argument(
         "--stride", type=int, default=None, help="score every Nth control frame (default: 10 fps)"
     )

@@ -191,8 +191,9 @@ def run(args: argparse.Namespace) -> int:
         check_ports_exist(args.port)
     elif args.port:
         raise RetargetError(
-            f"--port: for --backend dynamixel, and --backend {args.backend} opens no serial "
-            "port: drop --port, or stream to the servos with --backend dynamixel"
+            f"--port names the servos' serial port, which only --backend dynamixel opens "
+            f"(--backend {args.backend} opens none): drop --port, or stream to the servos with "
+            "--backend dynamixel"
         )
     source = open_source(
         args.source,
@@ -270,6 +271,9 @@ def run(args: argparse.Namespace) -> int:
             page.close()
     print(f"frames: {result.step.frames} retargeted, {result.stats.commands} commands sent")
     print(result.stats.line())
+    overran = overrun_warning(result.stats.overruns, result.stats.commands, rate)
+    if overran is not None:
+        print(overran, file=sys.stderr)
     print(loop.budget.report())
     print(source.stats.summary())
     for line in source.report_lines():
@@ -364,6 +368,23 @@ def _check_record(args: argparse.Namespace) -> None:
 
     inputs = [Path(args.source[len("replay:") :])] if args.source.startswith("replay:") else []
     check_outputs([Output("--record", args.record, FORMATS)], inputs=inputs, force=args.force)
+
+
+OVERRUN_SHARE = 0.01  # of the loop's ticks: more overran, and the rate was not kept
+
+
+def overrun_warning(overruns: int, commands: int, rate_hz: float) -> str | None:
+    """A warning when more than :data:`OVERRUN_SHARE` of the loop's ticks overran: the
+    machine did not keep ``rate_hz`` (the servos got fewer, later commands than asked)."""
+    ticks = overruns + commands
+    if ticks == 0 or overruns <= OVERRUN_SHARE * ticks:
+        return None
+    return (
+        f"warning: the control loop overran {overruns} of {ticks} ticks "
+        f"({overruns / ticks:.0%}): this machine did not keep --rate {rate_hz:g} Hz, so the "
+        "servos got fewer commands than asked; use a lower --rate (the robot config's "
+        "control rate is a safe default)"
+    )
 
 
 def _save_record(

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robot_retarget.cli.data_dir import add_data_argument
+from robot_retarget.cli.number_args import positive_float, positive_int
 from robot_retarget.errors import RetargetError
 
 if TYPE_CHECKING:
@@ -72,7 +73,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--steps", type=int, default=20000, help="total optimisation steps")
     parser.add_argument("--batch-size", type=int, default=32)
     parser.add_argument("--window", type=int, default=DEFAULT_WINDOW_FRAMES, help="frames")
-    parser.add_argument("--fps", type=float, default=DEFAULT_FPS, help="common frame rate")
+    parser.add_argument("--fps", type=positive_float, default=DEFAULT_FPS, help="common frame rate")
     parser.add_argument(
         "--val-subjects",
         default=",".join(DEFAULT_VALIDATION_SUBJECTS),
@@ -136,7 +137,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="extra B = A reconstruction loss on the retargeted pose (deviation from the "
         "papers; default 0 = off; see robot_retarget.nn.train.same_skeleton_step)",
     )
-    parser.add_argument("--max-frames", type=int, default=None, help="first frames per clip")
+    parser.add_argument(
+        "--max-frames", type=positive_int, default=None, help="first frames per clip"
+    )
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     parser.add_argument(

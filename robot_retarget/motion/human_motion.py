@@ -287,8 +287,13 @@ def load_bvh_motion(
         raise ValueError(f"max_frames must be at least 1, got {max_frames}")
     if p.suffix.lower() != ".bvh":
         raise MotionFormatError(
-            f"unsupported motion file type {p.suffix or '(none)'!r}; load_motion reads .bvh "
-            "(robot trajectories: RobotTrajectory.read)",
+            f"not a motion clip ({p.suffix or 'no suffix'}): motion is read from .bvh files"
+            + (
+                " (an .npz, .csv or robot .json is a trajectory: `view` shows it, `inspect` "
+                "describes it)"
+                if p.suffix.lower() in (".npz", ".csv")
+                else ""
+            ),
             path=p,
         )
     from robot_retarget.motion.bvh import read_bvh

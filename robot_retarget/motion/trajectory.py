@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import MotionFormatError, OutputWriteError
+from robot_retarget.npz_errors import npz_unreadable_reason
 
 ROOT_POS_COLUMNS: tuple[str, ...] = ("root_x", "root_y", "root_z")
 ROOT_QUAT_COLUMNS: tuple[str, ...] = ("root_qw", "root_qx", "root_qy", "root_qz")
@@ -357,7 +358,7 @@ def _read_npz(path: Path) -> RobotTrajectory:
         with np.load(path, allow_pickle=False) as npz:
             data = {k: npz[k] for k in npz.files}
     except (zipfile.BadZipFile, ValueError, EOFError) as exc:
-        raise MotionFormatError(f"not a readable .npz archive ({exc})", path=path) from None
+        raise MotionFormatError(npz_unreadable_reason(exc), path=path) from None
     missing = [k for k in ("joint_names", "q", "fps") if k not in data]
     if missing:
         raise MotionFormatError(

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from robot_retarget.errors import ModelLoadError
+from robot_retarget.npz_errors import npz_unreadable_reason
 
 META_KEY = "__meta__"
 
@@ -34,7 +35,9 @@ def read_runtime_npz(path: Path, what: str) -> tuple[dict[str, np.ndarray], dict
     except FileNotFoundError:
         raise ModelLoadError(f"{what} not found", path=path) from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # a cut-off file too
-        raise ModelLoadError(f"not a runtime .npz file ({exc})", path=path) from None
+        raise ModelLoadError(
+            f"not a runtime .npz file ({npz_unreadable_reason(exc)})", path=path
+        ) from None
     if META_KEY not in arrays:
         raise ModelLoadError(
             "runtime file has no __meta__ entry (not exported by export)", path=path

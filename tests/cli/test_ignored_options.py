@@ -53,7 +53,9 @@ def test_stream_and_demo_refuse_options_they_would_ignore(
 ) -> None:
     assert main(["stream", "--backend", "sim", "--port", "/dev/ttyNOPE",
                  "--source", f"replay:{WALK}", "--duration", "1"]) != 0  # fmt: skip
-    assert "--port: for --backend dynamixel" in capsys.readouterr().err
+    assert "--port names the servos' serial port, which only --backend dynamixel opens" in (
+        capsys.readouterr().err
+    )
     out = tmp_path / "demo"
     assert main(["demo", "--out-dir", str(out), "--keypoint-model", "agnostic2d"]) != 0
     assert "add --input 2d" in capsys.readouterr().err

@@ -406,3 +406,14 @@ def test_a_recording_survives_an_error_that_stops_the_stream(
         stream_cmd.run(args)
     assert RobotTrajectory.read(record).num_frames == 40
     assert f"recorded 40 commands to {record}" in capsys.readouterr().out
+
+
+def test_a_rate_the_loop_did_not_keep_is_warned_of() -> None:
+    from robot_retarget.cli.stream_cmd import overrun_warning
+
+    assert overrun_warning(0, 0, 125.0) is None  # no tick at all
+    assert overrun_warning(1, 999, 125.0) is None  # 0.1 %: a hiccup
+    warning = overrun_warning(14903, 10200, 10000.0)
+    assert warning is not None
+    assert "overran 14903 of 25103 ticks (59%)" in warning
+    assert "did not keep --rate 10000 Hz" in warning
