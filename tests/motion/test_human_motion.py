@@ -145,7 +145,7 @@ def test_load_motion_options(motion_fixtures: Path) -> None:
     assert m.tpose_frames_dropped == 1
     assert load_motion(path, drop_tpose=False).num_frames == 25
     assert load_motion(path, drop_tpose=True).num_frames == 24
-    with pytest.raises(MotionFormatError, match="unsupported"):
+    with pytest.raises(MotionFormatError, match=r"not a motion clip \(\.py\)"):
         load_motion(motion_fixtures / "generate.py")
     with pytest.raises(MotionFormatError, match="unknown length unit"):
         load_motion(path, unit="furlong")
