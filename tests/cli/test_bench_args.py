@@ -1,5 +1,6 @@
-"""Every bench target refuses a count or duration it cannot run with as a usage error, naming
-the option, before any work (not a traceback, not a silently clamped run)."""
+"""Every bench target, and eval, crossval, eval-robot and train, refuses a count, rate or
+duration it cannot run with as a usage error, naming the option, before any work (not a
+traceback, not a silently clamped run)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,12 @@ from robot_retarget.cli.main import main
         (["bench", "stream", "--seconds", "-1"], "--seconds"),
         (["bench", "stream", "--rate", "inf"], "--rate"),
         (["bench", "solve", "--frames", "0"], "--frames"),
+        (["eval", "--fps", "0"], "--fps"),  # was a ZeroDivisionError traceback
+        (["eval", "--max-frames", "0"], "--max-frames"),  # was a ValueError traceback
+        (["eval", "--max-frames", "-1"], "--max-frames"),  # was taken
+        (["crossval", "--fps", "nan"], "--fps"),
+        (["eval-robot", "--max-frames", "two"], "--max-frames"),
+        (["train", "--fps", "-30"], "--fps"),
     ],
 )
 def test_bad_counts_are_usage_errors(
@@ -33,3 +40,9 @@ def test_bad_counts_are_usage_errors(
     err = capsys.readouterr().err
     assert f"argument {option}:" in err
     assert "Traceback" not in err
+
+
+def test_the_refusal_says_what_was_expected(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["eval", "--max-frames", "0"])
+    assert "argument --max-frames: must be at least 1, got 0" in capsys.readouterr().err
