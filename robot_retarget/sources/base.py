@@ -25,13 +25,14 @@ DEFAULT_QUEUE_FRAMES = 256
 
 WARN_AFTER = 30  # consecutive packets a sender got wrong before a live warning
 MAX_MESSAGE_CHARS = 200
-_SENDER_FAULTS = frozenset(("oversized", "malformed", "nan", "auth"))
+_SENDER_FAULTS = frozenset(("oversized", "malformed", "nan", "degenerate", "auth"))
 DROP_REASONS: tuple[str, ...] = (
     "oversized",
     "malformed",
     "out_of_order",
     "duplicate",
     "nan",
+    "degenerate",
     "auth",
     "queue_full",
 )

@@ -49,7 +49,7 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import SourceError
-from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
+from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS
 
 WIRE_VERSION = 1
 MAGIC = b"RRM1"
@@ -165,9 +165,30 @@ def decode_binary(data: bytes) -> WirePacket:
     return _packet(kind, int(seq), float(t_s), raw.astype(np.float64), token)
 
 
+MIN_BONE_M = 0.005
+"""A bone shorter than this (5 mm) is no body's: a tracker that lost the person often sends
+every joint at one point (zeros), which solves to a straight-legged pose at full speed."""
+_PARENTS = np.asarray(CANONICAL_PARENTS[1:])
+
+
+def check_body(positions: FloatArray) -> FloatArray:
+    """``positions`` (22, 3) if at least half of the canonical bones are longer than
+    :data:`MIN_BONE_M`; else WireError (reason ``degenerate``): joints collapsed onto a point,
+    not a pose."""
+    bones = np.linalg.norm(positions[1:] - positions[_PARENTS], axis=1)
+    short = int(np.count_nonzero(bones < MIN_BONE_M))
+    if 2 * short > len(bones):
+        raise WireError(
+            f"{short} of {len(bones)} bones shorter than {MIN_BONE_M * 1e3:.0f} mm: the joints "
+            "collapsed onto a point (a tracker that lost the person?), not a pose",
+            reason="degenerate",
+        )
+    return positions
+
+
 def _packet(kind: str, seq: int, t_s: float, values: FloatArray, token: str) -> WirePacket:
     if kind == KIND_POSITIONS:
-        return WirePacket(kind, seq, t_s, values.reshape(_J, 3), None, token)
+        return WirePacket(kind, seq, t_s, check_body(values.reshape(_J, 3)), None, token)
     return WirePacket(kind, seq, t_s, values[3:].reshape(_J, 4), values[:3].copy(), token)
 
 
@@ -200,7 +221,7 @@ def decode_json(data: bytes) -> WirePacket:
     if not isinstance(token, str):
         raise WireError("'token' must be a string")
     if kind == KIND_POSITIONS:
-        values = _array(obj, "joints", (_J, 3))
+        values = check_body(_array(obj, "joints", (_J, 3)))
         return WirePacket(kind, seq, t, values, None, token)
     quats = _array(obj, "quats", (_J, 4))
     root = _array(obj, "root", (3,))

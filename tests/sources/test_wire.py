@@ -6,7 +6,7 @@ import struct
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from robot_retarget.geometry import quaternion as quat
@@ -19,7 +19,11 @@ tokens = st.text(st.characters(codec="utf-8", exclude_categories=("Cs",)), max_s
 
 
 def _positions(values: list[float]) -> np.ndarray:
-    return np.array(values, dtype=np.float64).reshape(22, 3)
+    pos = np.array(values, dtype=np.float64).reshape(22, 3)
+    with contextlib.suppress(wire.WireError):
+        return wire.check_body(pos)
+    assume(False)  # joints collapsed onto a point: refused, below
+    return pos
 
 
 @settings(max_examples=40)
@@ -92,6 +96,17 @@ def test_nan_and_oversized_packets() -> None:
     )
     assert _reason(b"RRM1" + b"\0" * wire.MAX_BINARY_BYTES) == "oversized"
     assert _reason(b" " * (wire.MAX_JSON_BYTES + 1)) == "oversized"
+
+
+def test_joints_collapsed_onto_a_point_are_no_pose() -> None:
+    """A tracker that lost the person and sends zeros: dropped like NaN (the loop holds, then
+    goes to the safe pose), where it had solved to straight legs at full speed."""
+    for collapsed in (np.zeros((22, 3)), np.ones((22, 3))):
+        for packet in (wire.encode_binary, wire.encode_json):
+            assert _reason(packet(wire.KIND_POSITIONS, 1, 0.0, collapsed)) == "degenerate"
+    pose = np.cumsum(np.full((22, 3), 0.05), axis=0)  # every bone 8.7 cm
+    pose[12:] = pose[12]  # a few bones collapsed (joints the tracker lost): still a pose
+    assert len(wire.check_body(pose)) == 22
 
 
 @settings(max_examples=200)
