@@ -16,20 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from robot_retarget.errors import MotionFormatError, RetargetError
+from robot_retarget.errors import MotionFormatError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.robot.config import RobotConfig
-from robot_retarget.viewer.robot_match import RobotGuessError
+from robot_retarget.viewer.robot_match import RobotGuessError, joint_angles_for
 
 TRAJECTORY_SUFFIXES = (".npz", ".csv", ".json")
-
-
-class TrajectoryRobotError(RetargetError):
-    """``--robot`` names a robot whose joints are not the trajectory's."""
-
-    def __init__(self, message: str, *, robot: str) -> None:
-        self.robot = robot
-        super().__init__(message)
 
 
 def describe_trajectory(path: str, *, robot: str | None = None) -> dict[str, Any]:
@@ -64,7 +56,7 @@ def describe_trajectory(path: str, *, robot: str | None = None) -> dict[str, Any
         info["robot_why"] = str(exc)
         return info
     info["robot"] = config.name
-    q = _in_config_order(traj, config)
+    q = joint_angles_for(config, traj)
     info.update(_limits(config, q, traj.fps, from_init_pose=lead_in > 0))
     if traj.root_pos is not None and traj.root_quat is not None:
         info.update(_base(config, q, traj.root_pos, traj.root_quat, lead_in))
@@ -89,27 +81,7 @@ def _robot(traj: RobotTrajectory, name: str | None) -> RobotConfig:
 
     if name is None:
         return robot_for_trajectory(traj)
-    config = load_robot_config(name)
-    if set(config.joint_names) != set(traj.joint_names):
-        foreign = sorted(set(traj.joint_names) - set(config.joint_names))
-        missing = sorted(set(config.joint_names) - set(traj.joint_names))
-        example = (
-            f"{foreign[0]!r} is not one of {config.name}'s"
-            if foreign
-            else (f"{missing[0]!r} is missing")
-        )
-        raise TrajectoryRobotError(
-            f"--robot {name}: the file's {len(traj.joint_names)} joints are not "
-            f"{config.name}'s {config.num_joints} ({example}); name the robot it was converted "
-            "for, or leave --robot out",
-            robot=config.name,
-        )
-    return config
-
-
-def _in_config_order(traj: RobotTrajectory, config: RobotConfig) -> np.ndarray:
-    column = {name: k for k, name in enumerate(traj.joint_names)}
-    return np.asarray(traj.q[:, [column[name] for name in config.joint_names]])
+    return load_robot_config(name)  # its joints are checked by joint_angles_for
 
 
 def _limits(

@@ -7,6 +7,9 @@ exactly the file's is the robot. No match, or more than one, is an error that as
 
 from __future__ import annotations
 
+import numpy as np
+
+from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import RetargetError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.robot.config import RobotConfig
@@ -40,3 +43,30 @@ def robot_for_trajectory(trajectory: RobotTrajectory) -> RobotConfig:
     if len(matches) != 1:
         raise RobotGuessError([c.name for c in matches], known)
     return matches[0]
+
+
+class TrajectoryMismatchError(RetargetError):
+    """The trajectory's joints are not ``robot``'s: ``missing`` (the robot's joints it lacks)
+    and ``extra`` (its joints the robot has not)."""
+
+    def __init__(self, robot: str, missing: list[str], extra: list[str]) -> None:
+        self.robot = robot
+        self.missing = missing
+        self.extra = extra
+        super().__init__(
+            f"the trajectory's joints are not {robot}'s ("
+            + (f"{extra[0]!r} is not one of them" if extra else f"{missing[0]!r} is missing")
+            + f"; {len(missing)} of {robot}'s missing, {len(extra)} unknown): pass the robot "
+            "it was converted for with --robot"
+        )
+
+
+def joint_angles_for(config: RobotConfig, trajectory: RobotTrajectory) -> FloatArray:
+    """The trajectory's angles (T, J) in ``config``'s joint order."""
+    names = list(trajectory.joint_names)
+    missing = [n for n in config.joint_names if n not in names]
+    extra = [n for n in names if n not in config.joint_names]
+    if missing or extra:
+        raise TrajectoryMismatchError(config.name, missing, extra)
+    order = [names.index(n) for n in config.joint_names]
+    return np.asarray(trajectory.q[:, order], dtype=np.float64)

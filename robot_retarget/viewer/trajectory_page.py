@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.errors import RetargetError
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.viewer.robot_match import joint_angles_for
 from robot_retarget.viewer.robot_scene import (
     PERFORMER_RGB,
     ROBOT_RGB,
@@ -32,31 +32,6 @@ from robot_retarget.viewer.timeline import SPEEDS, Timeline
 
 PLAYBACK_HZ = 30.0
 _PLAY, _PAUSE = "Play", "Pause"
-
-
-class TrajectoryMismatchError(RetargetError):
-    """The trajectory's joints are not the robot's: ``missing`` (robot joints the file lacks)
-    and ``extra`` (file columns the robot does not have)."""
-
-    def __init__(self, robot: str, missing: list[str], extra: list[str]) -> None:
-        self.robot = robot
-        self.missing = missing
-        self.extra = extra
-        super().__init__(
-            f"the trajectory does not fit robot {robot}: missing joints {missing}, unknown "
-            f"joints {extra}; pass the robot it was converted for with --robot"
-        )
-
-
-def joint_angles_for(config: RobotConfig, trajectory: RobotTrajectory) -> FloatArray:
-    """The trajectory's angles (T, J) in ``config``'s joint order."""
-    names = list(trajectory.joint_names)
-    missing = [n for n in config.joint_names if n not in names]
-    extra = [n for n in names if n not in config.joint_names]
-    if missing or extra:
-        raise TrajectoryMismatchError(config.name, missing, extra)
-    order = [names.index(n) for n in config.joint_names]
-    return np.asarray(trajectory.q[:, order], dtype=np.float64)
 
 
 class TrajectoryPage:

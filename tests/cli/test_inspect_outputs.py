@@ -78,7 +78,11 @@ def test_a_robot_that_does_not_fit_is_an_error_and_an_unknown_one_is_said(
 ) -> None:
     code, _, err = _report(capsys, str(led_trajectory), "--robot", "poppy_humanoid")
     assert code == 1
-    assert "--robot poppy_humanoid: the file's 20 joints are not poppy_humanoid's 25" in err
+    assert (
+        "the trajectory's joints are not poppy_humanoid's ('r_sho_pitch' is not one of them; 25 "
+        "of poppy_humanoid's missing, 20 unknown): pass the robot it was converted for with "
+        "--robot" in err
+    )
     odd = tmp_path / "odd.json"
     RobotTrajectory(("a", "b"), np.zeros((3, 2)), 30.0).write(odd)
     code, info, _ = _report(capsys, str(odd))

@@ -7,8 +7,12 @@ import pytest
 
 from robot_retarget.motion.trajectory import RobotTrajectory
 from robot_retarget.robot.loader import load_robot_config
-from robot_retarget.viewer.robot_match import RobotGuessError, robot_for_trajectory
-from robot_retarget.viewer.trajectory_page import TrajectoryMismatchError, joint_angles_for
+from robot_retarget.viewer.robot_match import (
+    RobotGuessError,
+    TrajectoryMismatchError,
+    joint_angles_for,
+    robot_for_trajectory,
+)
 
 
 @pytest.mark.parametrize("robot", ["op3", "poppy_humanoid"])
