@@ -1,6 +1,7 @@
-"""argparse types for counts and rates that must be positive: a zero or negative value is
-refused as the command line is read (argparse's one-line error naming the option), before it
-can divide by zero or empty an array somewhere deep in a run."""
+"""argparse types for counts and rates that must be positive (or, for warm-up counts, not
+negative): a value out of range is refused as the command line is read (argparse's one-line
+error naming the option), before it can divide by zero or empty an array somewhere deep in a
+run. Every command's counts use these: train, eval, crossval, eval-robot and the benchmarks."""
 
 from __future__ import annotations
 
@@ -16,6 +17,17 @@ def positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """An integer ≥ 0 (warm-up runs)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be at least 0, got {value}")
     return value
 
 

@@ -14,7 +14,7 @@ import json
 import sys
 
 from robot_retarget.cli.data_dir import add_data_argument
-from robot_retarget.cli.number_args import positive_float, positive_int
+from robot_retarget.number_args import positive_float, positive_int
 
 NAME = "crossval"
 HELP = "Subject-level cross-validation: train per fold, score unseen performers."

@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from robot_retarget.cli.data_dir import add_data_argument
-from robot_retarget.cli.number_args import positive_float, positive_int
+from robot_retarget.number_args import positive_float, positive_int
 
 if TYPE_CHECKING:  # torch is imported by the command, not by the CLI's import
     from robot_retarget.array_types import FloatArray

@@ -15,7 +15,7 @@ from typing import Any
 
 from robot_retarget.cli.data_dir import add_data_argument
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
-from robot_retarget.cli.number_args import positive_int
+from robot_retarget.number_args import positive_int
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
 NAME = "eval-robot"

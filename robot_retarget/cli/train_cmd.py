@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robot_retarget.cli.data_dir import add_data_argument
-from robot_retarget.cli.number_args import positive_float, positive_int
 from robot_retarget.errors import RetargetError
+from robot_retarget.number_args import positive_float, positive_int
 
 if TYPE_CHECKING:
     from robot_retarget.nn.motion_augmentation import MotionAugmentation

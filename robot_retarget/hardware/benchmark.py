@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_retarget.bench_stats import TimingStats, non_negative_int, positive_int
+from robot_retarget.bench_stats import TimingStats
 from robot_retarget.errors import HardwareError
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import buses_from_config
@@ -45,6 +45,7 @@ from robot_retarget.hardware.safety import SafetyLayer
 from robot_retarget.hardware.stage_timer import StageTimer
 from robot_retarget.hardware.state_block import StateBlock
 from robot_retarget.hardware.types import JointCommand
+from robot_retarget.number_args import non_negative_int, positive_int
 from robot_retarget.robot.config import RobotConfig
 
 HELP = "Goal write + state read cycle on the simulated Dynamixel bus: bus calls vs backend."

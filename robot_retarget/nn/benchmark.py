@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.bench_stats import TimingStats, non_negative_int, positive_int
+from robot_retarget.bench_stats import TimingStats
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.nn.inference import (
@@ -32,6 +32,7 @@ from robot_retarget.nn.inference import (
     shipped_checkpoints,
 )
 from robot_retarget.nn.models.registry import MODELS, build_model
+from robot_retarget.number_args import non_negative_int, positive_int
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 
 HELP = "Retargeting model time per frame, online and per clip (median, p99)."

@@ -18,8 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from robot_retarget.bench_stats import TimingStats, positive_int
+from robot_retarget.bench_stats import TimingStats
 from robot_retarget.errors import MotionFormatError
+from robot_retarget.number_args import positive_int
 from robot_retarget.optimize.retargeter import Retargeter
 from robot_retarget.optimize.targets import ClipTargets, targets_from_rotations
 

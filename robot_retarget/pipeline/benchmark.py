@@ -20,8 +20,9 @@ import dataclasses
 import time
 from typing import Any
 
-from robot_retarget.bench_stats import non_negative_int, positive_int, stage_records
+from robot_retarget.bench_stats import stage_records
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
+from robot_retarget.number_args import non_negative_int, positive_int
 from robot_retarget.pipeline.defaults import MODEL_HELP
 
 HELP = "Per-frame compute time of the live path: decode, network, targets, optimizer, safety."

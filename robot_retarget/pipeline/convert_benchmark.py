@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_retarget.bench_stats import positive_int
+from robot_retarget.number_args import positive_int
 from robot_retarget.pipeline.defaults import MODEL_HELP
 
 HELP = "Folder conversion on 1, 2, ... Ray workers: frames/s, per-clip time, speed-up."

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_retarget.bench_stats import positive_float, positive_int
+from robot_retarget.number_args import positive_float, positive_int
 from robot_retarget.pipeline.defaults import MODEL_HELP
 
 HELP = "Live stream on the simulated bus: late frames and tick jitter, with and without --view."
