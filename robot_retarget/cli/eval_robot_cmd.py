@@ -15,7 +15,7 @@ from typing import Any
 
 from robot_retarget.cli.data_dir import add_data_argument
 from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
-from robot_retarget.number_args import positive_int
+from robot_retarget.number_args import non_negative_float, positive_float, positive_int
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
 NAME = "eval-robot"
@@ -51,14 +51,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--max-frames", type=positive_int, default=None, help="first frames per clip"
     )
     parser.add_argument(
-        "--stride", type=int, default=None, help="score every Nth control frame (default: 10 fps)"
+        "--stride",
+        type=positive_int,
+        default=None,
+        help="score every Nth control frame (default: 10 fps)",
     )
     parser.add_argument(
-        "--eval-fps", type=float, default=10.0, help="evaluation rate (default 10 fps)"
+        "--eval-fps", type=positive_float, default=10.0, help="evaluation rate (default 10 fps)"
     )
     parser.add_argument(
         "--settle-s",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         help="leave each clip's first seconds out of the direction and end-effector scores "
         "(the move from the init pose); default 0",
@@ -141,6 +144,17 @@ def _overrides(items: list[str]) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.plots is not None:
+        if args.corrupt is not None or args.input == "2d":
+            raise SystemExit(
+                "eval-robot: --plots draws the clip rows' report; the --corrupt and --input 2d "
+                "reports have no plots, leave it out"
+            )
+        if Path(args.plots).exists() and not Path(args.plots).is_dir():
+            raise SystemExit(
+                f"eval-robot: --plots {args.plots} is a file; it names the folder the PNG plots "
+                "go into"
+            )
     if args.one_euro is not None and args.corrupt is None:
         raise SystemExit("eval-robot: --one-euro smooths the live loop of --corrupt; add --corrupt")
     if (args.keypoint_model or args.clip_keypoint_model or not args.image_planes) and (

@@ -13,11 +13,13 @@ segment directions are kept, so that two runs of one clip can be compared with e
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.errors import InvalidMotionError
 from robot_retarget.evaluation.live_corruption import CorruptedStream
 from robot_retarget.evaluation.robot.metrics import segment_angles
 from robot_retarget.evaluation.robot.segments import BodyPoints, RobotBodyModel, human_body_points
@@ -141,6 +143,13 @@ def score_live(
     """Run ``stream`` through the loop (clip rate ``clean.fps`` as the sender's nominal rate)
     and score the commands against ``clean``; ``clean_positions=False``: the source solves
     the positions as sent (no cleanup of frozen joints, swapped limbs and jitter)."""
+    if clean.num_frames / clean.fps <= settle_s:
+        need = math.floor(settle_s * clean.fps) + 1
+        raise InvalidMotionError(
+            f"the clip is {clean.num_frames} frames ({clean.num_frames / clean.fps:.2f} s at "
+            f"{clean.fps:g} fps): the live runs are scored after their first {settle_s:g} s, so "
+            f"it must be longer (with --max-frames, at least {need})"
+        )
     config = step.config
     clock = _SimClock()
     # Join the motion at once: the ramp is the same for every kind and is not what is scored.
@@ -153,7 +162,7 @@ def score_live(
     result = loop.run()
     played = [e for e in result.log if e.mode is not Mode.STOPPING and e.play_t_s >= settle_s]
     if not played:
-        raise ValueError(f"no command played after {settle_s} s: the clip is too short")
+        raise InvalidMotionError(f"no command played after {settle_s} s: the clip is too short")
     q = np.array([e.q for e in played])
     t = np.array([e.play_t_s for e in played])
     frames = np.clip(np.rint(t * clean.fps).astype(int), 0, clean.num_frames - 1)

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robot_retarget.errors import InvalidMotionError
 from robot_retarget.evaluation.live_corruption import KINDS, corrupt_stream
 from robot_retarget.evaluation.live_replay import LiveScore, deviation_deg, score_live
 from robot_retarget.evaluation.robot.segments import RobotBodyModel
@@ -70,14 +71,17 @@ def robustness(
             for kind in scores:  # clean first: the reference of the deviation
                 rng = np.random.default_rng(seed + k)
                 stream = corrupt_stream(motion, kind, rng)
-                s = score_live(
-                    step,
-                    motion,
-                    stream,
-                    body=body,
-                    input_filter=input_filter,
-                    clean_positions=clean_positions,
-                )
+                try:
+                    s = score_live(
+                        step,
+                        motion,
+                        stream,
+                        body=body,
+                        input_filter=input_filter,
+                        clean_positions=clean_positions,
+                    )
+                except InvalidMotionError as exc:
+                    raise InvalidMotionError(f"{name}: {exc}") from None
                 if reference is None:  # this is the clean run
                     reference = s
                 scores[kind].append((s.direction_deg, s.jerk_rad_s3, deviation_deg(s, reference)))

@@ -10,8 +10,8 @@ Angles are radians in the robot config's joint order. Files:
 - NPZ: arrays ``joint_names`` (str), ``q``, ``fps`` and, when known, ``root_pos``,
   ``root_quat``, ``t0``, ``frame_ms``.
 
-Writers never replace an existing file unless ``overwrite=True``; NaN or infinite values are
-refused when writing and when reading.
+Writers never replace an existing file unless ``overwrite=True``; NaN or infinite values, and a
+``root_quat`` that is not a unit quaternion, are refused when writing and when reading.
 """
 
 from __future__ import annotations
@@ -38,6 +38,9 @@ ROOT_QUAT_COLUMNS: tuple[str, ...] = ("root_qw", "root_qx", "root_qy", "root_qz"
 FRAME_MS_COLUMN = "frame_ms"
 _RESERVED = {"time", FRAME_MS_COLUMN, *ROOT_POS_COLUMNS, *ROOT_QUAT_COLUMNS}
 FORMATS: tuple[str, ...] = (".csv", ".json", ".npz")
+# How far a root_quat's norm may be from 1: a float32 or 4-decimal round trip stays well inside
+# it; further off, the file's base orientation is not a rotation (or not w-x-y-z) and is refused.
+QUAT_NORM_TOLERANCE = 1e-3
 
 
 def _optional(value: npt.ArrayLike | None, shape: tuple[int, ...], name: str) -> FloatArray | None:
@@ -111,6 +114,25 @@ class RobotTrajectory:
         """Time of each frame in seconds."""
         return np.asarray(self.t0 + np.arange(self.num_frames) / self.fps, dtype=np.float64)
 
+    def check_values(self, path: str | Path | None = None) -> None:
+        """Raise MotionFormatError naming the first NaN / infinite value or the first
+        ``root_quat`` that is not a unit quaternion, if any."""
+        self.check_finite(path)
+        if self.root_quat is None:
+            return
+        off = np.abs(np.linalg.norm(self.root_quat, axis=1) - 1.0)
+        bad = np.flatnonzero(off > QUAT_NORM_TOLERANCE)
+        if bad.size:
+            frame = int(bad[0])
+            norm = float(np.linalg.norm(self.root_quat[frame]))
+            raise MotionFormatError(
+                f"root_quat at frame {frame} has norm {norm:.6g} ({bad.size} of "
+                f"{self.num_frames} frames off 1 by more than {QUAT_NORM_TOLERANCE:g}); the base "
+                "orientation must be a unit quaternion w-x-y-z (normalise it, or check the "
+                "column order)",
+                path=path,
+            )
+
     def check_finite(self, path: str | Path | None = None) -> None:
         """Raise MotionFormatError naming the first NaN / infinite value, if any."""
         arrays = {"q": self.q, "root_pos": self.root_pos, "root_quat": self.root_quat}
@@ -142,7 +164,7 @@ class RobotTrajectory:
                 "replace it",
                 path=p,
             )
-        self.check_finite(p)
+        self.check_values(p)
         if not p.parent.is_dir():
             raise OutputWriteError(f"no folder {p.parent} to write into; create it first", path=p)
         tmp = p.with_name(p.name + ".part")
@@ -176,7 +198,7 @@ class RobotTrajectory:
             raise MotionFormatError(
                 f"cannot read the file: {exc.strerror or exc}", path=p
             ) from None
-        traj.check_finite(p)
+        traj.check_values(p)
         return traj
 
     def _csv_text(self, path: Path) -> str:

@@ -28,6 +28,11 @@ from robot_retarget.cli.main import main
         (["eval", "--max-frames", "-1"], "--max-frames"),  # was taken
         (["crossval", "--fps", "nan"], "--fps"),
         (["eval-robot", "--max-frames", "two"], "--max-frames"),
+        (["eval-robot", "--eval-fps", "0"], "--eval-fps"),  # was a ZeroDivisionError traceback
+        (["eval-robot", "--eval-fps", "-5"], "--eval-fps"),  # was taken
+        (["eval-robot", "--stride", "0"], "--stride"),  # was taken
+        (["eval-robot", "--stride", "-1"], "--stride"),  # was a traceback
+        (["eval-robot", "--settle-s", "-1"], "--settle-s"),  # was a traceback
         (["train", "--fps", "-30"], "--fps"),
     ],
 )

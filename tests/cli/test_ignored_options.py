@@ -115,3 +115,14 @@ def test_stream_refuses_options_its_source_ignores(
 ) -> None:
     assert main(["stream", "--backend", "sim", "--duration", "0.2", *extra]) != 0
     assert says in capsys.readouterr().err
+
+
+def test_eval_robot_refuses_plots_it_cannot_write_before_any_clip(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a_file = tmp_path / "plots.png"
+    a_file.write_bytes(b"")
+    with pytest.raises(SystemExit, match="is a file; it names the folder"):
+        main(["eval-robot", "--plots", str(a_file), "--data", str(tmp_path / "none")])
+    with pytest.raises(SystemExit, match="--corrupt and --input 2d reports have no plots"):
+        main(["eval-robot", "--plots", str(tmp_path), "--corrupt", "jitter"])

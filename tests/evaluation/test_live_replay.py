@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from robot_retarget.errors import InvalidMotionError
 from robot_retarget.evaluation.live_corruption import corrupt_stream
 from robot_retarget.evaluation.live_replay import LiveScore, deviation_deg, score_live
 from robot_retarget.evaluation.robot.segments import BodyPoints
@@ -60,5 +61,5 @@ def test_a_clip_shorter_than_the_settling_time_is_refused() -> None:
     config = load_robot_config("op3")
     clip = demo_motion(fps=30.0).frames(0, 10)
     step = RetargetStep(config, load_model("copy"), clip.skeleton)
-    with pytest.raises(ValueError, match="too short"):
+    with pytest.raises(InvalidMotionError, match=r"10 frames \(0.33 s at 30 fps\).*at least 31"):
         score_live(step, clip, corrupt_stream(clip, "clean", np.random.default_rng(0)))

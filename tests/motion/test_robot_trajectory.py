@@ -109,6 +109,28 @@ def test_nan_refused_on_read(tmp_path: Path) -> None:
         RobotTrajectory.read(npz_path)
 
 
+@pytest.mark.parametrize("suffix", [".csv", ".json", ".npz"])
+def test_non_unit_root_quat_refused_on_write(tmp_path: Path, suffix: str) -> None:
+    good = make()
+    quats = good.root_quat.copy()
+    quats[3] *= 2.0  # a scaled quaternion: not a rotation until normalised
+    traj = RobotTrajectory(NAMES, good.q, 50.0, root_pos=good.root_pos, root_quat=quats)
+    with pytest.raises(MotionFormatError, match=r"root_quat at frame 3 has norm 2 \(1 of 5"):
+        traj.write(tmp_path / f"q{suffix}")
+    assert not (tmp_path / f"q{suffix}").exists()
+
+
+def test_non_unit_root_quat_refused_on_read(tmp_path: Path) -> None:
+    header = "time,a,root_qw,root_qx,root_qy,root_qz\n"
+    path = tmp_path / "q.csv"
+    path.write_text(header + "0,0.1,1,0,0,0\n0.02,0.1,0,0,0,0\n")
+    with pytest.raises(MotionFormatError, match=r"frame 1 has norm 0 .*unit quaternion w-x-y-z"):
+        RobotTrajectory.read(path)
+    # A float32 or few-decimal round trip is well inside the tolerance and read as written.
+    path.write_text(header + "0,0.1,0.7071,0.7071,0,0\n0.02,0.1,0.99995,0,0,0\n")
+    np.testing.assert_array_equal(RobotTrajectory.read(path).root_quat[:, 0], [0.7071, 0.99995])
+
+
 @pytest.mark.parametrize(
     ("text", "line", "words"),
     [
