@@ -31,6 +31,7 @@ from robot_retarget.cli.foot_lock_arg import add_foot_lock_argument
 from robot_retarget.cli.image_size_arg import image_size_argument
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist
 from robot_retarget.cli.tcp_port_arg import tcp_port_argument
+from robot_retarget.number_args import positive_float
 from robot_retarget.pipeline.defaults import MODEL_HELP
 from robot_retarget.pipeline.input_filter import one_euro_argument
 
@@ -40,6 +41,8 @@ if TYPE_CHECKING:
     from robot_retarget.pipeline.loop import LogEntry
 
 NAME = "stream"
+VIEW_PORT = 8080
+VIEW_HOST = "127.0.0.1"
 HELP = "Drive a robot (or the simulator) live from a replayed clip or a mocap stream."
 
 
@@ -77,8 +80,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_port_argument(
         parser, "default: a bus not named opens its default_port from the robot config's buses"
     )
-    parser.add_argument("--rate", type=float, help="control rate in Hz (default: the config's)")
-    parser.add_argument("--duration", type=float, help="stop after S seconds")
+    parser.add_argument(
+        "--rate", type=positive_float, help="control rate in Hz (default: the config's)"
+    )
+    parser.add_argument("--duration", type=positive_float, help="stop after S seconds")
     parser.add_argument(
         "--one-euro",
         type=one_euro_argument,
@@ -97,7 +102,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", help=MODEL_HELP)
     add_foot_lock_argument(parser)
     parser.add_argument("--loop", action="store_true", help="replay: start over at the end")
-    parser.add_argument("--speed", type=float, default=1.0, help="replay speed factor")
+    parser.add_argument("--speed", type=positive_float, default=1.0, help="replay speed factor")
     parser.add_argument("--token", default="", help="shared secret UDP packets must carry")
     parser.add_argument(
         "--allow-remote",
@@ -111,7 +116,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "can reach the port can move the robot)",
     )
     parser.add_argument(
-        "--stats-every", type=float, default=5.0, help="print live statistics every S seconds"
+        "--stats-every",
+        type=positive_float,
+        default=5.0,
+        help="print live statistics every S seconds",
     )
     parser.add_argument(
         "--record",
@@ -134,14 +142,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--view-port",
         type=tcp_port_argument,
-        default=8080,
-        help="--view: port (the next free one if busy)",
+        default=None,
+        help=f"--view: port (default {VIEW_PORT}; the next free one if busy)",
     )
     parser.add_argument(
         "--view-host",
-        default="127.0.0.1",
-        help="--view: address to serve on (0.0.0.0: watch from another machine, whose browser "
-        "then does not compete with the loop for this one's CPU; the page is read-only)",
+        default=None,
+        help=f"--view: address to serve on (default {VIEW_HOST}; 0.0.0.0: watch from another "
+        "machine, whose browser then does not compete with the loop for this one's CPU; the "
+        "page is read-only)",
     )
     parser.add_argument("--no-browser", action="store_true", help="--view: do not open a browser")
     parser.add_argument(
@@ -171,11 +180,8 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.skeleton.canonical import default_canonical_skeleton
     from robot_retarget.sources import open_source
 
-    for name in ("rate", "duration", "speed"):
-        value = getattr(args, name)
-        if value is not None and not value > 0:
-            raise RetargetError(f"--{name} must be positive, got {value}")
     _check_source_options(args)
+    _check_backend_options(args)
     _check_remote(args)
     if args.view:
         from robot_retarget.viewer.dependency import require_viser
@@ -237,8 +243,8 @@ def run(args: argparse.Namespace) -> int:
             config,
             mailbox,
             measure=passive_measurement(backend),
-            host=args.view_host,
-            port=args.view_port,
+            host=VIEW_HOST if args.view_host is None else args.view_host,
+            port=VIEW_PORT if args.view_port is None else args.view_port,
         )
         report(f"live view: {page.url}")
         if not args.no_browser:
@@ -323,6 +329,8 @@ def _check_source_options(args: argparse.Namespace) -> None:
     ignored = []
     if not src.startswith("replay:"):
         ignored += [o for o, on in (("--loop", args.loop), ("--speed", args.speed != 1.0)) if on]
+    elif args.wake_on_input:  # a replay has every frame at hand: there is nothing to wait for
+        ignored.append("--wake-on-input")
     if args.keypoint_model is not None and not src.startswith("udp-keypoints://"):
         ignored.append("--keypoint-model")
     if not src.startswith(("udp://", "tcp-bvh://", "udp-keypoints://")):
@@ -339,6 +347,32 @@ def _check_source_options(args: argparse.Namespace) -> None:
             f"{', '.join(ignored)}: the source {src!r} does not use "
             f"{'it' if len(ignored) == 1 else 'them'}; leave "
             f"{'it' if len(ignored) == 1 else 'them'} out"
+        )
+
+
+def _check_backend_options(args: argparse.Namespace) -> None:
+    """--fix-registers without the servos, and --view's options without --view, are refused
+    by name."""
+    from robot_retarget.errors import RetargetError
+
+    if args.fix_registers and args.backend != "dynamixel":
+        raise RetargetError(
+            f"--fix-registers writes the servos' registers, and --backend {args.backend} opens "
+            "no servos: drop it, or stream to the servos with --backend dynamixel"
+        )
+    unused = [
+        option
+        for option, given in (
+            ("--view-port", args.view_port is not None),
+            ("--view-host", args.view_host is not None),
+            ("--no-browser", args.no_browser),
+        )
+        if given
+    ]
+    if unused and not args.view:
+        raise RetargetError(
+            f"{', '.join(unused)}: about the live page, which only --view serves; add --view "
+            f"or leave {'it' if len(unused) == 1 else 'them'} out"
         )
 
 

@@ -1,4 +1,4 @@
-"""Every bench target, and eval, crossval, eval-robot and train, refuses a count, rate or
+"""Every bench target, and eval, crossval, eval-robot, train and stream, refuse a count, rate or
 duration it cannot run with as a usage error, naming the option, before any work (not a
 traceback, not a silently clamped run)."""
 
@@ -34,6 +34,10 @@ from robot_retarget.cli.main import main
         (["eval-robot", "--stride", "-1"], "--stride"),  # was a traceback
         (["eval-robot", "--settle-s", "-1"], "--settle-s"),  # was a traceback
         (["train", "--fps", "-30"], "--fps"),
+        (["stream", "--source", "udp://127.0.0.1:9", "--stats-every", "0"], "--stats-every"),
+        (["stream", "--source", "udp://127.0.0.1:9", "--rate", "inf"], "--rate"),  # was taken
+        (["stream", "--source", "udp://127.0.0.1:9", "--duration", "-1"], "--duration"),
+        (["stream", "--source", "udp://127.0.0.1:9", "--rate", "-5"], "--rate"),
     ],
 )
 def test_bad_counts_are_usage_errors(

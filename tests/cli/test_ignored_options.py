@@ -108,6 +108,12 @@ def test_canonical_input_needs_a_skeleton_aware_model(
          "--keypoint-model: the source"),
         (["--source", f"replay:{WALK}", "--token", "x"], "--token: the source"),
         (["--source", "udp://127.0.0.1:9", "--insecure-no-token"], "without --allow-remote"),
+        (["--source", f"replay:{WALK}", "--wake-on-input"], "--wake-on-input: the source"),
+        (["--source", f"replay:{WALK}", "--fix-registers"],
+         "--fix-registers writes the servos' registers, and --backend sim opens no servos"),
+        (["--source", f"replay:{WALK}", "--view-port", "0", "--no-browser"],
+         "--view-port, --no-browser: about the live page, which only --view serves"),
+        (["--source", f"replay:{WALK}", "--view-host", "0.0.0.0"], "--view-host: about the live"),
     ],
 )  # fmt: skip
 def test_stream_refuses_options_its_source_ignores(

@@ -254,13 +254,6 @@ def test_a_trajectory_as_model_says_what_to_pass(tmp_path: Path) -> None:
             stream_cmd.run(_args("--source", clip, "--model", model))
 
 
-def test_bad_numbers_are_refused() -> None:
-    from robot_retarget.errors import RetargetError
-
-    with pytest.raises(RetargetError, match="--rate"):
-        stream_cmd.run(_args("--source", "udp://127.0.0.1:0", "--rate", "-5"))
-
-
 _CHILD = (
     "import argparse, sys\n"
     "from robot_retarget.cli import stream_cmd as c\n"
