@@ -18,12 +18,14 @@ from typing import TYPE_CHECKING
 
 from robot_retarget.cli.port_args import add_port_argument, check_ports_exist, split_port
 from robot_retarget.errors import HardwareError
+from robot_retarget.number_args import non_negative_int
 
 if TYPE_CHECKING:
     from robot_retarget.robot.config import RobotConfig
 
 NAME = "doctor"
 HELP = "Check serial ports, servos on a bus vs the robot config, FTDI latency and cycle time."
+CYCLES = 200
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -36,7 +38,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--bus", help="deprecated: use --port BUS=PATH (checks only this bus of the robot)"
     )
-    parser.add_argument("--cycles", type=int, default=200, help="timed write+read cycles")
+    parser.add_argument(
+        "--cycles",
+        type=non_negative_int,
+        default=None,
+        help=f"with --robot: timed write+read cycles (default {CYCLES}; 0: no timing)",
+    )
     parser.add_argument(
         "--fix-registers",
         action="store_true",
@@ -87,6 +94,20 @@ def run(args: argparse.Namespace) -> int:
             raise HardwareError(
                 f"{what}: naming a bus needs --robot R (the robot config defines the buses)"
             )
+        servo_options = [
+            option
+            for option, given in (
+                ("--cycles", args.cycles is not None),
+                ("--fix-registers", args.fix_registers),
+                ("--scan-all", args.scan_all),
+            )
+            if given
+        ]
+        if servo_options:
+            raise HardwareError(
+                f"{', '.join(servo_options)}: about the servos, which doctor checks only with "
+                "--robot R (the robot config says which servos to expect); add --robot"
+            )
     print("serial ports:")
     if not ports:
         print("  (none found: is the adapter plugged in?)")
@@ -96,6 +117,10 @@ def run(args: argparse.Namespace) -> int:
     if config is None:
         for item in items:
             print(doctor.latency_advice(item, doctor.latency_timer_ms(item)))
+        print(
+            "doctor: serial ports listed; no servo was checked (add --robot R to ping the "
+            "servos and compare them with the robot config)"
+        )
         return 0
 
     from robot_retarget.pipeline.backends import default_port_hint
@@ -113,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
                 config,
                 bus_cfg,
                 port,
-                cycles=args.cycles,
+                cycles=CYCLES if args.cycles is None else args.cycles,
                 scan_all=args.scan_all,
                 fix_registers=args.fix_registers,
                 port_hint=hint,
@@ -148,6 +173,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"  registers other tools leave ({what}), per servo: {verdict}")
             for findings in by_servo.values():
                 print(f"    {servo_summary(findings)}")
+        if report.cycle is None and args.cycles == 0:
+            print("  cycle: not timed (--cycles 0)")
         if report.cycle is not None:
             c = report.cycle
             print(

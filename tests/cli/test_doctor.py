@@ -47,6 +47,28 @@ def test_bus_names_need_a_robot_and_must_exist() -> None:
         _run("--robot", "poppy_humanoid", "--bus", "legs")
 
 
+def test_servo_options_need_a_robot_and_the_port_list_says_nothing_was_checked(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    for option in (["--cycles", "5"], ["--fix-registers"], ["--scan-all"]):
+        with pytest.raises(HardwareError, match=f"{option[0]}: about the servos.*add --robot"):
+            _run(*option)
+    assert capsys.readouterr().out == ""  # refused before the port list
+    assert _run() == 0
+    assert "no servo was checked (add --robot R" in capsys.readouterr().out
+
+
+def test_cycles_zero_skips_the_timing_and_says_so(capsys: pytest.CaptureFixture[str]) -> None:
+    config = load_robot_config("op3")
+    with SimulatedRobotBus(config) as sim:
+        assert _run("--robot", "op3", "--port", sim.ports["main"], "--cycles", "0") == 0
+    out = capsys.readouterr().out
+    assert "cycle: not timed (--cycles 0)" in out
+    assert "median" not in out
+    with pytest.raises(SystemExit):
+        _run("--robot", "op3", "--cycles", "-1")
+
+
 def test_two_buses_with_the_stream_syntax(capsys: pytest.CaptureFixture[str]) -> None:
     config = load_robot_config("poppy_humanoid")
     with SimulatedRobotBus(config) as sim:
