@@ -153,6 +153,15 @@ def run(args: argparse.Namespace) -> int:
         sim_q = sim.present_q()
         torque = sim.torque_on()
         packets = sim.packets()
+    if result.interrupted:
+        # The loop has stopped smoothly and switched the torque off; a cut stream is no test of
+        # the checks (they would fail on its length), and the preview is not worth the wait.
+        say(
+            f"demo stopped by Ctrl-C while streaming: torque off. Written: {traj_path}, "
+            f"{bvh_path} (the offline conversion); not written: the stream file, the checks "
+            "and the preview"
+        )
+        return 130
     log = result.log
     q_start = config.safe_pose if result.start_q is None else result.start_q
     streamed = np.array([e.q for e in log]) if log else np.zeros((0, config.num_joints))

@@ -79,3 +79,30 @@ def test_a_clip_over_before_the_ramp_hands_over_says_so(
     text = capsys.readouterr().out
     assert "never compared, the played clip (1.0 s) ended before the start ramp" in text
     assert "error inf" not in text
+
+
+def test_ctrl_c_while_streaming_stops_the_demo_and_says_what_was_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C in the stream: the loop stops smoothly (torque off) and the demo ends there with
+    130, instead of failing its checks on the cut stream and rendering the preview anyway."""
+    from robot_retarget.sources.base import SourceFrame
+    from robot_retarget.sources.replay import ReplaySource
+
+    polls = {"n": 0}
+    poll = ReplaySource.poll
+
+    def poll_then_ctrl_c(self: ReplaySource, now_s: float) -> list[SourceFrame]:
+        polls["n"] += 1
+        if polls["n"] == 100:
+            raise KeyboardInterrupt
+        return poll(self, now_s)
+
+    monkeypatch.setattr(ReplaySource, "poll", poll_then_ctrl_c)
+    out = tmp_path / "d"
+    assert demo_cmd.run(_args("--out-dir", str(out), "--seconds", "4")) == 130
+    captured = capsys.readouterr()
+    assert "demo stopped by Ctrl-C while streaming: torque off" in captured.err
+    assert "[FAIL]" not in captured.out
+    assert "[PASS]" not in captured.out
+    assert sorted(p.name for p in out.iterdir()) == ["demo_op3.bvh", "demo_op3.npz"]
