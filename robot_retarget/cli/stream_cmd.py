@@ -190,6 +190,11 @@ def run(args: argparse.Namespace) -> int:
     if args.record is not None:
         _check_record(args)
     config = load_robot_config(args.robot)
+    if args.rate is not None:
+        from robot_retarget.hardware.safety import check_servo_rate
+
+        # Before anything opens, and on the simulator too: it refuses what the servos would.
+        check_servo_rate(config, args.rate)
     if args.backend == "dynamixel":
         from robot_retarget.pipeline.backends import parse_ports
 

@@ -200,6 +200,15 @@ fewer, whole ticks within ``v_max · dt`` leave it nearly still (a quarter-perio
 ``--wake-on-input`` gets a quarter of them)."""
 
 
+def check_servo_rate(config: RobotConfig, rate_hz: float) -> None:
+    """Raise :class:`UnsafeCommandError` if ``config``'s servos, whose goals are whole ticks,
+    cannot run at ``rate_hz`` (as the Dynamixel backend would on connecting): a simulated
+    robot refuses the rate its real servos would."""
+    from robot_retarget.robot.servo_units import ServoUnits
+
+    _check_ticks_per_period(config, ServoUnits(config).rad_per_tick, 1.0 / rate_hz)
+
+
 def _check_ticks_per_period(config: RobotConfig, quantum: FloatArray, period_s: float) -> None:
     ticks = config.max_velocity * period_s / np.asarray(quantum)
     slow = ticks < MIN_TICKS_PER_PERIOD

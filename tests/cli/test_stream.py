@@ -416,3 +416,15 @@ def test_a_rate_the_loop_did_not_keep_is_warned_of() -> None:
     assert own is not None
     assert "--rate" not in own  # the user passed none
     assert "the robot config's control rate" in own
+
+
+def test_the_simulator_refuses_a_rate_the_servos_would(capsys: pytest.CaptureFixture[str]) -> None:
+    """2000 Hz leaves OP3's shoulders 1.57 ticks per period: the Dynamixel backend refuses it
+    on connecting, and so does the simulator, before anything opens (it used to run)."""
+    from robot_retarget.hardware.safety import UnsafeCommandError
+
+    clip = f"replay:{FIXTURES / 'tiny_walk.bvh'}"
+    for backend in ("sim", "dynamixel"):
+        with pytest.raises(UnsafeCommandError, match=r"at 2000 Hz .*run at 1570 Hz or less"):
+            stream_cmd.run(_args("--source", clip, "--backend", backend, "--rate", "2000"))
+    assert capsys.readouterr().err == ""  # refused before the stream's first line
