@@ -38,6 +38,21 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.nn.export import export_runtime
 
     sources = [_checkpoint_file(c) for c in args.checkpoint]
+    if args.out is None and Path(sources[0]).suffix.lower() == ".npz":
+        # The default --out is the checkpoint's own name with .npz: --force would replace it.
+        raise ModelLoadError(
+            f"{sources[0]}: a checkpoint named .npz would be exported onto itself (the runtime "
+            "goes beside the checkpoint, named .npz); give --out FILE.npz"
+        )
+    seen: dict[Path, str] = {}
+    for given, source in zip(args.checkpoint, sources, strict=True):
+        key = Path(source).resolve()
+        if key in seen:
+            raise ModelLoadError(
+                f"{given}: the same checkpoint as {seen[key]}; an ensemble averages different "
+                "models (the same one twice only weighs it double), give each once"
+            )
+        seen[key] = given
     if args.out is not None:
         check_outputs(
             [Output("--out", args.out, (".npz",))],

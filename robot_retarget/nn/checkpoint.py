@@ -27,6 +27,7 @@ import torch
 from robot_retarget.errors import ModelLoadError
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.registry import build_model, model_class
+from robot_retarget.npz_errors import is_numpy_archive
 
 FORMAT = "robot-retarget-model"
 VERSION = 1
@@ -94,6 +95,11 @@ def foreign_file(path: Path) -> str | None:
         return None
     if head.upper().startswith(b"HIERARCHY"):
         return "a BVH motion clip, not a checkpoint"
+    if is_numpy_archive(path):
+        return (
+            "a numpy (.npz) archive, such as an exported runtime file (convert, stream and the "
+            "API take those as --model), not a checkpoint"
+        )
     if head[:1] in (b"{", b"["):
         return "a JSON file, not a checkpoint"
     return None

@@ -29,6 +29,7 @@ from robot_retarget.nn.checkpoint import load_checkpoint
 from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.nn.models.san import SAN
+from robot_retarget.npz_errors import is_numpy_archive
 from robot_retarget.runtime.model import not_a_model
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 from robot_retarget.skeleton.skeleton import Skeleton
@@ -102,7 +103,7 @@ def checkpoint_file(text: str) -> Path | None:
             "training run folder",
             model=text,
         )
-    if candidate.suffix == ".npz":
+    if candidate.is_file() and is_numpy_archive(candidate):  # by content: names can be wrong
         raise ModelLoadError(
             f"{text}: a numpy runtime file, already exported (convert, stream and the API take "
             "it as --model); this command reads the .pt checkpoint it was exported from",
@@ -110,7 +111,7 @@ def checkpoint_file(text: str) -> Path | None:
         )
     if candidate.is_file():
         return candidate
-    if candidate.suffix == ".pt" or len(candidate.parts) > 1:
+    if candidate.suffix in (".pt", ".npz") or len(candidate.parts) > 1:
         raise ModelLoadError(f"{text}: no such checkpoint file", model=text)
     return None
 

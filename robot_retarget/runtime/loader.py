@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import zipfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy.typing as npt
 
+from robot_retarget.npz_errors import is_numpy_archive
 from robot_retarget.runtime.model import (
     MODEL_FORMS,
     OnlineStep,
@@ -57,7 +59,9 @@ def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | L
         raise ModelLoadError(
             f"{kind}, not a model: give --model {MODEL_FORMS}", path=text, model=text
         )
-    if text.endswith(".npz"):
+    # By content, then by name: a torch checkpoint named .npz is a zip of its own kind, and
+    # the runtime reader names what is wrong with any other .npz (missing, cut off).
+    if is_numpy_archive(Path(text)) or (text.endswith(".npz") and not zipfile.is_zipfile(text)):
         return load_runtime(text)
     try:
         from robot_retarget.nn.inference import load_model

@@ -83,3 +83,32 @@ def test_several_keypoint_checkpoints_export_as_one_ensemble(tmp_path: Path) -> 
         export_cmd.run(_args(*pts))
     with pytest.raises(ModelLoadError, match=r"only agnostic2d checkpoints.*default\.pt"):
         export_cmd.run(_args(pts[0], str(CHECKPOINT_DIR / "default.pt"), "--out", other))
+    with pytest.raises(ModelLoadError, match=r"k0\.pt: the same checkpoint as .*k0\.pt"):
+        export_cmd.run(
+            _args(pts[0], str(tmp_path / ".." / tmp_path.name / "k0.pt"), "--out", other)
+        )
+    assert not Path(other).exists()
+
+
+def test_a_file_is_judged_by_its_content_not_its_name(tmp_path: Path) -> None:
+    """A checkpoint named .npz exports (to an --out that is not itself); a runtime file named
+    .pt is named for what it is, not torch's archive error."""
+    import shutil
+
+    pt_named_npz = tmp_path / "renamed.npz"
+    shutil.copy(CHECKPOINT_DIR / "default.pt", pt_named_npz)
+    with pytest.raises(ModelLoadError, match=r"exported onto itself.*give --out"):
+        export_cmd.run(_args(str(pt_named_npz)))
+    out = tmp_path / "runtime.npz"
+    assert export_cmd.run(_args(str(pt_named_npz), "--out", str(out))) == 0
+    assert load_runtime(out).architecture == "residual"
+    npz_named_pt = tmp_path / "renamed.pt"
+    shutil.copy(CHECKPOINT_DIR / "default.npz", npz_named_pt)
+    with pytest.raises(ModelLoadError, match="a numpy runtime file, already exported"):
+        export_cmd.run(_args(str(npz_named_pt), "--out", str(tmp_path / "again.npz")))
+    # convert, stream and the API take either as --model, by content
+    from robot_retarget.runtime.loader import load_runtime_model
+
+    assert load_runtime_model(str(npz_named_pt)).architecture == "residual"
+    torch_named_npz = load_runtime_model(str(pt_named_npz))
+    assert torch_named_npz.architecture == "residual"
