@@ -22,6 +22,11 @@ from robot_retarget.cli.keypoint_facts import (
     format_keypoints_text,
     is_keypoint_file,
 )
+from robot_retarget.cli.robot_bvh_facts import (
+    describe_robot_bvh,
+    format_robot_bvh_text,
+    robot_of_bvh,
+)
 from robot_retarget.cli.trajectory_facts import (
     describe_trajectory,
     format_trajectory_text,
@@ -50,7 +55,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "joint_names: robot, lead-in, base, feet, limits)",
     )
     parser.add_argument(
-        "--json", action="store_true", help="print a JSON list, one object per file"
+        "--json",
+        action="store_true",
+        help="print a JSON list, one object per file (a file that cannot be read: {file, error})",
     )
     parser.add_argument(
         "--unit",
@@ -62,13 +69,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--robot",
-        help="the robot a trajectory is for (default: the bundled robot with exactly its joints)",
+        help="the robot a trajectory or robot BVH is for (default: the bundled robot with exactly "
+        "its joints, or links)",
     )
 
 
-def describe(path: str, *, unit: str | None = None, keep_tpose: bool = False) -> dict[str, Any]:
-    """Facts about one motion file, as JSON-ready values."""
-    clip = read_bvh(path)
+def describe(
+    path: str, *, unit: str | None = None, keep_tpose: bool = False, clip: BvhClip | None = None
+) -> dict[str, Any]:
+    """Facts about one motion file, as JSON-ready values (``clip``: the file, already read)."""
+    clip = read_bvh(path) if clip is None else clip
     motion = canonicalize(clip, unit=unit, drop_tpose=False if keep_tpose else "auto")
     mapping = dict(zip(CANONICAL_JOINTS, motion.source_joints, strict=True))
     return {
@@ -162,11 +172,20 @@ def run(args: argparse.Namespace) -> int:
                 info = describe_trajectory(path, robot=args.robot)
                 text = format_trajectory_text(info)
             else:
-                info = describe(path, unit=args.unit, keep_tpose=args.keep_tpose)
-                text = format_text(info)
+                clip = read_bvh(path)
+                robot = robot_of_bvh(clip, args.robot)
+                if robot is not None:  # a robot's own skeleton (convert --bvh-out)
+                    info = describe_robot_bvh(path, clip, robot)
+                    text = format_robot_bvh_text(info)
+                else:
+                    info = describe(path, unit=args.unit, keep_tpose=args.keep_tpose, clip=clip)
+                    text = format_text(info)
         except RetargetError as exc:
             failed += 1
             print(f"error: {exc}", file=sys.stderr)
+            if args.json:  # in the list too, so a reader of it sees every file it asked for
+                where = path.path if isinstance(path, MotionFormatError) else path
+                reports.append({"file": where, "error": str(exc)})
             continue
         if args.json:
             reports.append(info)

@@ -100,7 +100,12 @@ def test_json_with_a_failure_still_lists_the_others(
     rc = main(["inspect", "--json", str(tmp_path / "nope.bvh"), str(FIXTURES / "asf_names.bvh")])
     captured = capsys.readouterr()
     assert rc == 1
-    assert [r["family"] for r in json.loads(captured.out)] == ["CMU ASF"]
+    missing, clip = json.loads(captured.out)  # in the order asked, the failure with its error
+    assert missing == {
+        "file": str(tmp_path / "nope.bvh"),
+        "error": f"{tmp_path / 'nope.bvh'}: cannot read the file: No such file or directory",
+    }
+    assert clip["family"] == "CMU ASF"
     assert captured.err.count("\n") == 1
 
 
@@ -117,7 +122,9 @@ def test_a_folder_is_every_bvh_under_it_sorted(
     rc = main(["inspect", "--json", str(clips), str(tmp_path / "empty")])
     captured = capsys.readouterr()
     assert rc == 1  # the empty folder
-    reports = json.loads(captured.out)
+    *reports, empty = json.loads(captured.out)
+    assert empty["file"] == str(tmp_path / "empty")
+    assert empty["error"].endswith("empty: no .bvh files in this folder")
     assert [Path(r["file"]).relative_to(clips).as_posix() for r in reports] == [
         "a.BVH",
         "b.bvh",

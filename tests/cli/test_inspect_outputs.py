@@ -123,3 +123,36 @@ def test_a_model_runtime_is_named_as_one(capsys: pytest.CaptureFixture[str]) -> 
     assert main(["inspect", str(runtime)]) == 1
     err = capsys.readouterr().err
     assert "a model's numpy runtime (written by train or export), not a trajectory" in err
+
+
+def test_a_robot_bvh_is_told_as_the_robot_s_not_mapped_as_a_human(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """convert --bvh-out's file: its robot, frames and base as the trajectory beside it (it was
+    refused as a human skeleton that lacks Hips, Spine, …)."""
+    clip = FIXTURES / "motion" / "tiny_walk.bvh"
+    out, bvh = tmp_path / "w.npz", tmp_path / "w.bvh"
+    assert main(["convert", str(clip), "--robot", "poppy_humanoid", "--out", str(out),
+                 "--bvh-out", str(bvh)]) == 0  # fmt: skip
+    traj = RobotTrajectory.read(out)
+    code, info, err = _report(capsys, str(bvh))
+    assert (code, err) == (0, "")
+    assert (info["kind"], info["robot"], info["frames"]) == (
+        "robot BVH",
+        "poppy_humanoid",
+        traj.num_frames,
+    )
+    assert info["fps"] == pytest.approx(traj.fps)
+    assert traj.root_pos is not None
+    np.testing.assert_allclose(
+        info["base_height_m"], [traj.root_pos[:, 2].min(), traj.root_pos[:, 2].max()], atol=1e-6
+    )
+    path = np.linalg.norm(np.diff(traj.root_pos[:, :2], axis=0), axis=1).sum()
+    assert info["base_path_m"] == pytest.approx(path, abs=1e-5)
+    # --robot naming another robot: not its links, so it is read as a motion clip (Poppy's
+    # skeleton maps onto the human one by its topology)
+    code, info, _ = _report(capsys, str(bvh), "--robot", "op3")
+    assert (code, info["family"]) == (0, "automatic (topology)")
+    # a human clip is still one, whatever --robot says
+    code, info, _ = _report(capsys, str(clip), "--robot", "op3")
+    assert (code, info["family"]) == (0, "CMU MotionBuilder")
