@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,7 +33,9 @@ from robot_retarget.nn.inference import (
     shipped_checkpoints,
 )
 from robot_retarget.nn.models.registry import MODELS, build_model
+from robot_retarget.npz_errors import is_numpy_archive
 from robot_retarget.number_args import non_negative_int, positive_int
+from robot_retarget.runtime.model import RuntimeModel, load_runtime
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 
 HELP = "Retargeting model time per frame, online and per clip (median, p99)."
@@ -46,7 +49,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--model",
         action="append",
         default=None,
-        help=f"model name or checkpoint path (repeatable; default: {', '.join(_DEFAULT_MODELS)})",
+        help="model name, checkpoint path or exported runtime .npz (timed online-numpy only) "
+        f"(repeatable; default: {', '.join(_DEFAULT_MODELS)})",
     )
     parser.add_argument(
         "--frames", type=positive_int, default=1000, help="timed frames (default 1000)"
@@ -86,6 +90,33 @@ def resolve(name: str) -> tuple[LoadedModel, str]:
     return LoadedModel(name=name, model=build_model(name).eval()), "untrained"
 
 
+def is_runtime_file(name: str) -> bool:
+    """``name`` is an exported numpy runtime file (by content; a missing ``.npz`` too, so that
+    the runtime reader says it is missing)."""
+    path = Path(name)
+    return is_numpy_archive(path) or (name.endswith(".npz") and not path.exists())
+
+
+def _runtime_record(name: str, args: argparse.Namespace) -> dict[str, Any]:
+    """An exported runtime's one row, ``online-numpy``: it holds no torch model to time."""
+    if args.mode == "clip":
+        raise ModelLoadError(
+            f"{name}: an exported runtime steps online only (it holds no torch model for a "
+            "whole-clip pass); time --mode online, or the .pt checkpoint it was exported from",
+            model=name,
+        )
+    stats = time_online(load_runtime(name), args.frames, args.warmup, numpy_twin=True)
+    return {
+        "model": name,
+        "mode": "online-numpy",
+        "frames": args.frames,
+        "median_ms": stats.median_ms,
+        "p99_ms": stats.p99_ms,
+        "weights": "trained",
+        "threads": args.threads,
+    }
+
+
 def has_numpy_twin(model: LoadedModel) -> bool:
     """Whether the live pipeline runs ``model``'s online step in numpy instead of torch."""
     from robot_retarget.runtime.loader import online_retargeter
@@ -100,17 +131,22 @@ def _target_offsets() -> FloatArray:
 
 
 def time_online(
-    model: LoadedModel, frames: int, warmup: int, numpy_twin: bool = False
+    model: LoadedModel | RuntimeModel, frames: int, warmup: int, numpy_twin: bool = False
 ) -> TimingStats:
     """Per-frame time of the online step: torch (``OnlineRetargeter``), or with ``numpy_twin``
-    the numpy step the live pipeline runs (robot_retarget.runtime.copy.online_retargeter)."""
+    the numpy step the live pipeline runs (robot_retarget.runtime.copy.online_retargeter; a
+    :class:`RuntimeModel` has only that one)."""
+    if isinstance(model, RuntimeModel) and not numpy_twin:
+        raise ValueError("a numpy runtime has no torch step: time it with numpy_twin=True")
     from robot_retarget.runtime.loader import online_retargeter
     from robot_retarget.runtime.model import OnlineStep
 
     q, root = synthetic_motion(frames + warmup)
     src, tgt = default_canonical_skeleton().offsets, _target_offsets()
     online: OnlineStep = (
-        online_retargeter(model, src, tgt) if numpy_twin else OnlineRetargeter(model, src, tgt)
+        online_retargeter(model, src, tgt)
+        if numpy_twin or isinstance(model, RuntimeModel)
+        else OnlineRetargeter(model, src, tgt)
     )
     online.reset()
     durations = []
@@ -154,6 +190,9 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
                 records += time_keypoint_model(
                     args.frames, args.warmup, args.clip_repeats, args.threads
                 )
+                continue
+            if is_runtime_file(name):
+                records.append(_runtime_record(name, args))
                 continue
             model, weights = resolve(name)
             modes: tuple[str, ...] = ("online", "clip") if args.mode == "both" else (args.mode,)
