@@ -86,7 +86,8 @@ def run(args: argparse.Namespace) -> int:
             raise HardwareError(
                 f"--bus {args.bus}: robot {config.name} has no such bus; buses: {names}"
             )
-        given = parse_ports(config, items)  # unknown bus, or a plain PATH on several buses
+        # Unknown bus, a plain PATH on several buses, two named buses on one port.
+        given = parse_ports(config, items, all_buses=False)
     else:
         named = [item for item in items if split_port(item)[0] is not None]
         if named or args.bus is not None:

@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 
 from robot_retarget.errors import HardwareError
@@ -16,8 +17,12 @@ from robot_retarget.robot.config import RobotConfig
 BACKENDS: tuple[str, ...] = ("sim", "dynamixel")
 
 
-def parse_ports(config: RobotConfig, ports: Sequence[str]) -> dict[str, str]:
-    """``PATH`` (one-bus robots) or ``BUS=PATH`` items → {bus name: port}."""
+def parse_ports(
+    config: RobotConfig, ports: Sequence[str], *, all_buses: bool = True
+) -> dict[str, str]:
+    """``PATH`` (one-bus robots) or ``BUS=PATH`` items → {bus name: port}; two buses on one
+    port are refused (``all_buses``: every bus opens, a bus not named at its default port, as
+    streaming does; else only those named, one after another, as ``doctor`` checks them)."""
     names = [b.name for b in config.buses]
     out: dict[str, str] = {}
     for item in ports:
@@ -39,6 +44,20 @@ def parse_ports(config: RobotConfig, ports: Sequence[str]) -> dict[str, str]:
                 "per bus"
             )
         out[bus] = path
+    # Two buses on one serial line would open it twice (Linux allows that): their packets,
+    # at each bus's own baud rate and protocol, would interleave on the wire.
+    resolved: dict[str, str] = {}
+    for bus_cfg in config.buses:
+        if not all_buses and bus_cfg.name not in out:
+            continue
+        path = out.get(bus_cfg.name, bus_cfg.default_port)
+        key = os.path.realpath(path)
+        if key in resolved:
+            raise HardwareError(
+                f"buses {resolved[key]!r} and {bus_cfg.name!r} would both open {path}: each "
+                "bus is its own serial adapter; give each its own --port BUS=PATH"
+            )
+        resolved[key] = bus_cfg.name
     return out
 
 

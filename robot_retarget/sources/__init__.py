@@ -74,7 +74,10 @@ def open_source(
         from robot_retarget.errors import MotionFormatError
         from robot_retarget.motion.human_motion import load_motion
 
-        path = Path(spec[len("replay:") :])
+        text = spec[len("replay:") :]
+        if not text.strip():  # Path("") is ".", a folder: say what is missing instead
+            raise SourceError("replay: names no clip; give replay:PATH/TO/CLIP.bvh")
+        path = Path(text)
         if path.is_dir():
             raise SourceError(
                 f"replay clip {path} is a folder; replay takes one clip: give "

@@ -37,6 +37,10 @@ def test_tcp_bvh_spec() -> None:
     ("spec", "match"),
     [
         ("replay:/no/such/clip.bvh", "does not exist"),
+        (
+            "replay:",
+            "replay: names no clip; give replay:PATH/TO/CLIP.bvh",
+        ),  # was "clip . is a folder"
         ("udp://0.0.0.0:9750", "allow-remote"),
         ("tcp-bvh://127.0.0.1", "needs a port"),
         ("udp://127.0.0.1:notaport", "bad port"),
