@@ -273,8 +273,8 @@ class ControlLoop:
                 self.safety.disconnect()
             finally:
                 self.source.stop()
+        # Not reported here: the caller prints the final line with its summary (it was twice).
         snapshot = self.stats.snapshot(self.source.stats)
-        self.report(snapshot.line())
         return LoopResult(
             stats=snapshot,
             safety=self.safety.stats,
