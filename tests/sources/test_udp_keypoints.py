@@ -65,7 +65,10 @@ def test_bad_packets_are_counted_never_raised(runtime: Agnostic2DRuntime) -> Non
     assert src.handle_packet(good, 0.0) is not None
     short = json.loads(good)
     short["people"][0]["keypoints"] = short["people"][0]["keypoints"][:16]
+    broken = json.loads(good)  # a point with a score and no position: the sender's fault
+    broken["people"][0]["keypoints"][3][0] = float("nan")
     cases = {
+        "nan": json.dumps(broken).encode(),  # was taken as the point not seen (no_person)
         "duplicate": good,
         "out_of_order": encode_keypoints(4, 0.5, [_person(0.0)], token="tok"),
         "auth": encode_keypoints(6, 1.1, [_person(0.0)], token="nope"),
@@ -76,6 +79,9 @@ def test_bad_packets_are_counted_never_raised(runtime: Agnostic2DRuntime) -> Non
         before = src.stats.dropped[reason]
         assert src.handle_packet(data, 0.0) is None
         assert src.stats.dropped[reason] == before + 1, reason
+    unseen = json.loads(encode_keypoints(7, 1.2, [_person(0.0)], token="tok"))
+    unseen["people"][0]["keypoints"][3] = [float("nan"), float("nan"), 0.0]  # not seen: marked
+    assert src.handle_packet(json.dumps(unseen).encode(), 0.0) is not None
 
 
 def test_nobody_in_view_is_a_frame_of_missing_points(runtime: Agnostic2DRuntime) -> None:

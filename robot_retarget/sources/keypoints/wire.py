@@ -67,8 +67,16 @@ def decode_keypoints(data: bytes, min_confidence: float) -> KeypointPacket:
             xy, conf, valid = parse_coco_person(person, min_confidence)
         except CocoPersonError as exc:
             raise WireError(f"person: {exc}") from None
-        if not np.isfinite(xy[valid]).all():
-            raise WireError("keypoints contain NaN or infinite values", reason="nan")
+        # A point sent with a score but no finite position is the sender's fault, not a point
+        # it did not see (score 0, or a NaN score): the packet is dropped as "nan", not taken
+        # as the person out of view.
+        broken = ~np.isfinite(xy).all(axis=1) & (conf > 0.0)
+        if broken.any():
+            raise WireError(
+                f"keypoint {int(np.flatnonzero(broken)[0])} has a score but a NaN or infinite "
+                "position (send a point not seen with score 0)",
+                reason="nan",
+            )
         people.append((xy, conf, valid))
     return KeypointPacket(seq, t, people, token, _image_size(obj.get("image_size")))
 
