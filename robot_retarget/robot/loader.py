@@ -139,8 +139,10 @@ def resolve_config_path(name_or_path: str | os.PathLike[str]) -> Path:
         for candidate in _candidates(d, text):
             if candidate.is_file():
                 return candidate
+    searched = [str(d) for d in config_dirs() if d.is_dir()]  # a folder not there is no clue
     raise ConfigError(
-        f"no robot config named {text!r} (searched {', '.join(str(d) for d in config_dirs())})",
+        f"no robot config named {text!r} (searched {', '.join(searched) or 'no folder'}); give "
+        f"a robot's YAML path, or add its folder to {CONFIG_DIR_ENV}",
         allowed=", ".join(available_robots()) or "none found",
     )
 

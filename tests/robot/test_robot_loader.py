@@ -264,3 +264,19 @@ def test_a_robot_folder_and_a_tilde_find_its_file(
     (tmp_path / "empty").mkdir()
     with pytest.raises(ConfigError, match=r"a folder, without empty\.yaml in it"):
         load_robot_config(tmp_path / "empty")
+
+
+def test_an_unknown_name_lists_the_folders_searched_that_exist(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A folder that is not there (a wheel's package data in a checkout, a stale env entry)
+    would send the user looking in it: only folders that exist are listed."""
+    gone = tmp_path / "gone"
+    monkeypatch.setenv(loader.CONFIG_DIR_ENV, os.fspath(gone))
+    with pytest.raises(ConfigError, match="no robot config named 'nao'") as info:
+        load_robot_config("nao")
+    text = str(info.value)
+    assert str(gone) not in text
+    assert all(Path(d).is_dir() for d in text.split("(searched ")[1].split(")")[0].split(", "))
+    assert f"add its folder to {loader.CONFIG_DIR_ENV}" in text
+    assert "allowed: op3, poppy_humanoid" in text
