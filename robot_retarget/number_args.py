@@ -1,12 +1,15 @@
 """argparse types for counts and rates that must be positive (or, for warm-up counts, not
 negative): a value out of range is refused as the command line is read (argparse's one-line
 error naming the option), before it can divide by zero or empty an array somewhere deep in a
-run. Every command's counts use these: train, eval, crossval, eval-robot and the benchmarks."""
+run. Every command's counts use these: train, eval, crossval, eval-robot, stream, doctor and the
+benchmarks; train and crossval check their --device name here too."""
 
 from __future__ import annotations
 
 import argparse
 import math
+import re
+from collections.abc import Callable
 
 
 def _int_at_least(text: str, low: int) -> int:
@@ -17,6 +20,16 @@ def _int_at_least(text: str, low: int) -> int:
     if value < low:
         raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
     return value
+
+
+def int_at_least(low: int) -> Callable[[str], int]:
+    """The type of an integer ≥ ``low`` (a window of frames that needs two for velocities)."""
+
+    def parse(text: str) -> int:
+        return _int_at_least(text, low)
+
+    parse.__name__ = f"int_at_least_{low}"
+    return parse
 
 
 def positive_int(text: str) -> int:
@@ -53,3 +66,15 @@ def non_negative_float(text: str) -> float:
     if value < 0.0:
         raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
     return value
+
+
+_DEVICE = re.compile(r"(cpu|cuda(:\d+)?|mps)")
+
+
+def torch_device(text: str) -> str:
+    """A torch device name (cpu, cuda, cuda:N, mps), checked as it is read: torch's own error
+    for another comes as a traceback after the data have loaded. Whether the machine has the
+    device is for the training to say."""
+    if not _DEVICE.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected cpu, cuda, cuda:N or mps, got {text!r}")
+    return text

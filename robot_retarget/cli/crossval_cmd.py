@@ -10,11 +10,13 @@ Trainings run one after another in this process; ``--resume`` continues a stoppe
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
+from collections.abc import Iterator
 
 from robot_retarget.cli.data_dir import add_data_argument
-from robot_retarget.number_args import positive_float, positive_int
+from robot_retarget.number_args import int_at_least, positive_float, positive_int, torch_device
 
 NAME = "crossval"
 HELP = "Subject-level cross-validation: train per fold, score unseen performers."
@@ -35,7 +37,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_data_argument(parser)
     parser.add_argument("--out", required=True, help="output folder, e.g. runs/cv-residual")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out")
-    parser.add_argument("--steps", type=int, required=True, help="steps of every training")
+    parser.add_argument("--steps", type=positive_int, required=True, help="steps of every training")
     parser.add_argument(
         "--robot",
         action="append",
@@ -54,13 +56,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help='JSON fold plan {"test": [...], "cv": [[...], ...]} (default: the plan for the '
         "shared ten subjects, robot_retarget.evaluation.folds)",
     )
-    parser.add_argument("--batch-size", type=int, default=32)
-    parser.add_argument("--window", type=int, default=DEFAULT_WINDOW_FRAMES, help="frames")
+    parser.add_argument("--batch-size", type=positive_int, default=32)
+    parser.add_argument(
+        "--window", type=int_at_least(2), default=DEFAULT_WINDOW_FRAMES, help="frames (≥ 2)"
+    )
     parser.add_argument("--fps", type=positive_float, default=DEFAULT_FPS, help="common frame rate")
-    parser.add_argument("--lr", type=float, default=LEARNING_RATE, help="Adam learning rate")
+    parser.add_argument(
+        "--lr", type=positive_float, default=LEARNING_RATE, help="Adam learning rate"
+    )
     parser.add_argument("--seed", type=int, default=0, help="training seed")
-    parser.add_argument("--val-every", type=int, default=500, help="steps between validations")
-    parser.add_argument("--checkpoint-every", type=int, default=500)
+    parser.add_argument(
+        "--val-every", type=positive_int, default=500, help="steps between validations"
+    )
+    parser.add_argument("--checkpoint-every", type=positive_int, default=500)
     parser.add_argument(
         "--model-config",
         action="append",
@@ -72,8 +80,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--max-frames", type=positive_int, default=None, help="first frames per clip"
     )
     parser.add_argument("--eval-seed", type=int, default=0, help="seed of the denoising noise")
-    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
-    parser.add_argument("--device", default="cpu", help="training device: cpu or cuda")
+    parser.add_argument("--threads", type=positive_int, default=None, help="torch CPU threads")
+    parser.add_argument(
+        "--device", type=torch_device, default="cpu", help="training device: cpu, cuda or cuda:N"
+    )
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
     output = parser.add_mutually_exclusive_group()
     output.add_argument("--json", action="store_true", help="print crossval.json's content")
@@ -130,7 +140,8 @@ def run(args: argparse.Namespace) -> int:
             flush=True,
         )
 
-    report = crossval(config, resume=args.resume, log=log, progress=progress)
+    with _out_folder(args.out):
+        report = crossval(config, resume=args.resume, log=log, progress=progress)
     if args.json:
         print(json.dumps(report, indent=2))
     else:
@@ -149,14 +160,44 @@ def _check_arguments(args: argparse.Namespace) -> None:
     from robot_retarget.cli.train_cmd import TrainArgumentError
     from robot_retarget.robot.loader import load_robot_config
 
-    for option in ("steps", "batch_size", "window", "val_every", "checkpoint_every", "threads"):
-        value = getattr(args, option)
-        if value is not None and value < 1:
-            flag = "--" + option.replace("_", "-")
-            raise TrainArgumentError(f"{flag} must be at least 1, got {value}")
     for robot in args.robot or []:
         if robot != "none":
             load_robot_config(robot)  # a ConfigError naming the robots there are
+    if args.device.startswith("cuda"):
+        import torch
+
+        if not torch.cuda.is_available():  # before the data load and the copy baselines' scores
+            raise TrainArgumentError(f"--device {args.device}: torch sees no CUDA device; use cpu")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise TrainArgumentError(f"--out {out}: a file, not a folder; name a folder for the run")
+    if args.resume and not (out / "crossval.json").is_file():
+        raise TrainArgumentError(
+            f"--resume: nothing to resume, {out} holds no cross-validation (crossval.json); "
+            "drop --resume to start one"
+        )
+
+
+@contextlib.contextmanager
+def _out_folder(out_text: str) -> Iterator[None]:
+    """--out made for the cross-validation inside (a one-line error if it cannot be); a run
+    that fails before writing into it leaves no empty folder behind where there was none."""
+    from pathlib import Path
+
+    from robot_retarget.cli.train_cmd import TrainArgumentError
+
+    out = Path(out_text)
+    existed = out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise TrainArgumentError(
+            f"--out {out}: cannot create the folder ({exc.strerror or exc})"
+        ) from None
+    try:
+        yield
+    except BaseException:
+        if not existed:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only while empty
+        raise

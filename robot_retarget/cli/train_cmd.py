@@ -19,7 +19,13 @@ from typing import TYPE_CHECKING, Any
 
 from robot_retarget.cli.data_dir import add_data_argument
 from robot_retarget.errors import RetargetError
-from robot_retarget.number_args import positive_float, positive_int
+from robot_retarget.number_args import (
+    int_at_least,
+    non_negative_int,
+    positive_float,
+    positive_int,
+    torch_device,
+)
 
 if TYPE_CHECKING:
     from robot_retarget.nn.motion_augmentation import MotionAugmentation
@@ -70,9 +76,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="start a new run in an --out that holds one (its checkpoints and logs are deleted "
         "first; without --force or --resume such a folder is refused)",
     )
-    parser.add_argument("--steps", type=int, default=20000, help="total optimisation steps")
-    parser.add_argument("--batch-size", type=int, default=32)
-    parser.add_argument("--window", type=int, default=DEFAULT_WINDOW_FRAMES, help="frames")
+    parser.add_argument(
+        "--steps", type=positive_int, default=20000, help="total optimisation steps"
+    )
+    parser.add_argument("--batch-size", type=positive_int, default=32)
+    parser.add_argument(
+        "--window", type=int_at_least(2), default=DEFAULT_WINDOW_FRAMES, help="frames (≥ 2)"
+    )
     parser.add_argument("--fps", type=positive_float, default=DEFAULT_FPS, help="common frame rate")
     parser.add_argument(
         "--val-subjects",
@@ -92,12 +102,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="robot configs whose canonical skeletons are training targets (default %(default)s;"
         " empty for none)",
     )
-    parser.add_argument("--val-every", type=int, default=500, help="steps between validations")
-    parser.add_argument("--checkpoint-every", type=int, default=500)
-    parser.add_argument("--log-every", type=int, default=25)
+    parser.add_argument(
+        "--val-every", type=positive_int, default=500, help="steps between validations"
+    )
+    parser.add_argument("--checkpoint-every", type=positive_int, default=500)
+    parser.add_argument("--log-every", type=positive_int, default=25)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--device", default="cpu", help="cpu (default) or cuda")
-    parser.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate (papers: 1e-4)")
+    parser.add_argument(
+        "--device", type=torch_device, default="cpu", help="cpu (default), cuda or cuda:N"
+    )
+    parser.add_argument(
+        "--lr", type=positive_float, default=1e-4, help="Adam learning rate (papers: 1e-4)"
+    )
     parser.add_argument(
         "--model-config",
         action="append",
@@ -141,10 +157,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--max-frames", type=positive_int, default=None, help="first frames per clip"
     )
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
-    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
+    parser.add_argument("--threads", type=positive_int, default=None, help="torch CPU threads")
     parser.add_argument(
         "--loader-workers",
-        type=int,
+        type=non_negative_int,
         default=0,
         metavar="N",
         help="agnostic2d: N processes render the camera views ahead of the training step "
@@ -208,16 +224,27 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+# A run holding any of these can be resumed or scored: a failed run keeps its files then.
+_CHECKPOINTS = ("last.pt", "best.pt", "trainer_state.pt")
+
+
 @contextlib.contextmanager
 def _run_folder(args: argparse.Namespace) -> Iterator[None]:
-    """Claim --out (:func:`_claim_run_folder`) for the training inside; a run refused before
-    it wrote anything leaves no empty folder behind where there was none."""
+    """Claim --out (:func:`_claim_run_folder`) for the training inside. A new run that stops
+    before its first checkpoint (refused, failed or interrupted) takes the files it wrote
+    (config.json, the log) with it, so that running again needs no --force, and leaves no
+    empty folder behind where there was none."""
+    from robot_retarget.nn.run_folder import clear_run
+
     out = Path(args.out)
     existed = out.exists()
     _claim_run_folder(args)
     try:
         yield
     except BaseException:
+        if not args.resume and not any((out / name).exists() for name in _CHECKPOINTS):
+            with contextlib.suppress(OSError):
+                clear_run(out)
         if not existed:
             with contextlib.suppress(OSError):
                 out.rmdir()  # only while empty
@@ -239,6 +266,8 @@ def _claim_run_folder(args: argparse.Namespace) -> None:
             "--force under torchrun: delete the run folder's files first, or name a new --out"
         )
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise TrainArgumentError(f"--out {out}: a file, not a folder; name a folder for the run")
     held = [p.name for p in run_files(out)]
     if held and not args.resume and not args.force and os.environ.get("RANK", "0") == "0":
         raise TrainArgumentError(
@@ -250,6 +279,20 @@ def _claim_run_folder(args: argparse.Namespace) -> None:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise TrainArgumentError(f"--out {out}: cannot create the run folder ({e})") from e
+
+
+def _check_held_out(args: argparse.Namespace) -> None:
+    """A subject left out entirely (--exclude-subjects) cannot also be validated on: said
+    before the data load, naming both options (the split said the subject was not in the
+    data)."""
+    validation = [s for s in args.val_subjects.split(",") if s]
+    both = sorted(set(validation) & {s for s in args.exclude_subjects.split(",") if s})
+    if both and not args.resume:
+        raise TrainArgumentError(
+            f"--exclude-subjects leaves out {', '.join(both)}, which --val-subjects "
+            f"({','.join(validation)}) validates on: a subject is either validated on or left "
+            "out; pass --val-subjects without it (empty for no validation)"
+        )
 
 
 def _bar(done: int, total: int, width: int = 24) -> str:
@@ -282,6 +325,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.threads is not None:
         torch.set_num_threads(args.threads)
+    _check_held_out(args)
     if args.model == "agnostic2d":
         return _run_agnostic2d(args)
     given = _agnostic2d_options_given(args)

@@ -56,6 +56,7 @@ from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matri
 from robot_retarget.nn.models.registry import KEYPOINT_MODELS
 from robot_retarget.nn.motion_augmentation import MotionAugmentation, augmented_window
 from robot_retarget.nn.run_folder import clear_run
+from robot_retarget.npz_errors import is_numpy_archive
 from robot_retarget.runtime.agnostic2d import Agnostic2DRuntime, save_agnostic2d
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS, Joint, default_canonical_skeleton
 from robot_retarget.skeleton.skeleton import Skeleton, forward_kinematics
@@ -488,9 +489,6 @@ def train_agnostic2d(
             validation_subjects=val_set.subjects,
             excluded_subjects=cfg.exclude_subjects,
         )
-    if fresh:
-        clear_run(out)
-    (out / "config.json").write_text(json.dumps({**asdict(cfg), "command": command}, indent=2))
     device = _device(cfg.device)
     model = model.to(device)
     if teacher is not None:
@@ -521,6 +519,11 @@ def train_agnostic2d(
             else {}
         ),
     }
+    # Only now, with the settings, the data, the model and its optimizer accepted, is a run
+    # replaced (--force) or the folder written: a refused run deletes nothing.
+    if fresh:
+        clear_run(out)
+    (out / "config.json").write_text(json.dumps({**asdict(cfg), "command": command}, indent=2))
     log_path = out / "log.csv"
     with log_path.open("w", newline="") as fh:
         csv.writer(fh).writerow(["step", "elapsed_s", "split", "metric", "value"])
@@ -584,7 +587,7 @@ def _initial_model(cfg: KeypointTrainConfig) -> tuple[Agnostic2D, dict[str, Any]
         config["dilations"] = tuple(config["dilations"])
     if cfg.init_from is None:
         return KEYPOINT_MODELS[Agnostic2D.name](**config), None
-    if Path(cfg.init_from).suffix == ".npz":
+    if is_numpy_archive(Path(cfg.init_from)):  # by content: a missing file is named as such
         raise KeypointTrainError(
             f"--init-from {cfg.init_from} is a numpy runtime, which holds no training state: "
             f"pass its torch checkpoint, {Path(cfg.init_from).with_suffix('.pt')}"

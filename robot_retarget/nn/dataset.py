@@ -182,6 +182,12 @@ def subject_of(path: Path, root: Path) -> str:
 def find_clips(data_dir: str | Path) -> list[Path]:
     """Every ``.bvh`` file under ``data_dir`` (any depth, any case), sorted."""
     root = Path(data_dir)
+    if root.is_file():
+        raise DatasetError(
+            "a file, not a folder: --data names the folder that holds the BVH clips (one "
+            "subfolder per performer, or files named SUBJECT_CLIP.bvh)",
+            path=root,
+        )
     if not root.is_dir():
         raise DatasetError("no such data folder; pass --data with a folder of BVH clips", path=root)
     paths = sorted(p for p in root.rglob("*") if p.is_file() and p.suffix.lower() == ".bvh")

@@ -27,6 +27,7 @@ import torch
 from robot_retarget.errors import ModelLoadError, RetargetError
 from robot_retarget.nn.keypoint_lineage import check_lineage
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
+from robot_retarget.npz_errors import is_numpy_archive
 
 
 class TeacherError(RetargetError):
@@ -75,7 +76,7 @@ class KeypointTeacher:
         sources: list[dict[str, str]] = []
         payloads: list[dict[str, Any]] = []
         for path in paths:
-            if Path(path).suffix == ".npz":
+            if is_numpy_archive(Path(path)):  # by content: a missing file is named as such
                 raise TeacherError(
                     f"--distill-from {path} is a numpy runtime, which the training cannot run: "
                     f"pass its torch checkpoint, {Path(path).with_suffix('.pt')}"

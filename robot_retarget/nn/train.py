@@ -285,7 +285,7 @@ def train(
     fresh: bool = False,
 ) -> TrainResult:
     """Run (or continue, with ``resume``) training as ``config`` says; returns where the
-    checkpoints are. ``fresh``: a run already in the folder is deleted once the settings and
+    checkpoints are. ``fresh``: a run already in the folder is deleted once the settings, the
     the data have loaded (``train --force``). Raises TrainError / DatasetError / ModelLoadError
     with what to change."""
     if config.model not in TRAINABLE_MODELS:
@@ -330,8 +330,6 @@ def train(
         dataset = _exclude(dataset, config.exclude_subjects)
     train_set, val_set = dataset.split(config.validation_subjects)
     robots = robot_skeletons(config.robots)
-    if fresh and not resume:
-        clear_run(out)
     if resume:
         saved = json.loads(cfg_path.read_text())
         saved_cfg = TrainConfig.from_json(saved["config"])
@@ -342,12 +340,6 @@ def train(
                 f"{train_set.data_hash[:12]}…; use the same --model and --data",
                 path=out,
             )
-    dp.barrier()  # every rank has checked the run folder before rank 0 writes into it
-    if dp.is_main:
-        out.mkdir(parents=True, exist_ok=True)
-        cfg_path.write_text(
-            json.dumps({"config": config.to_json(), "data_hash": train_set.data_hash}, indent=2)
-        )
 
     sampler = WindowSampler(
         train_set,
@@ -411,6 +403,16 @@ def train(
         best = float(state["best_score"])
 
     skeletons = _skeleton_set(train_set, robots)
+    # Only now, with every setting, the data, the model and its optimizer accepted, is a run
+    # replaced (--force) or the folder written: a refused run deletes nothing.
+    if fresh and not resume and dp.is_main:
+        clear_run(out)
+    dp.barrier()  # every rank has checked the run folder before rank 0 writes into it
+    if dp.is_main:
+        out.mkdir(parents=True, exist_ok=True)
+        cfg_path.write_text(
+            json.dumps({"config": config.to_json(), "data_hash": train_set.data_hash}, indent=2)
+        )
 
     def save(path: Path, step: int, val: dict[str, float] | None) -> None:
         if not dp.is_main:  # one copy of every file, written by rank 0

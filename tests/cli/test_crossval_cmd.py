@@ -63,10 +63,8 @@ def test_crossval_json_then_resume_as_markdown(
         (("--data", "MISSING"), "no such data folder"),
         # Checked before crossval.json is written: a typo must not leave a folder behind that
         # --resume then refuses.
-        (("--steps", "0"), "--steps must be at least 1, got 0"),
-        (("--batch-size", "0"), "--batch-size must be at least 1, got 0"),
-        (("--threads", "0"), "--threads must be at least 1, got 0"),
         (("--robot", "op4"), "no robot config named 'op4'"),
+        (("--resume", ""), "--resume: nothing to resume"),  # it started a new cross-validation
     ],
 )
 def test_errors_are_one_line(
@@ -82,7 +80,7 @@ def test_errors_are_one_line(
     if option in argv:
         argv[argv.index(option) + 1] = value
     else:
-        argv += [option, value]
+        argv += [option, value] if value else [option]
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert err.startswith("error: ")
@@ -97,3 +95,38 @@ def test_out_may_not_be_a_file(
     (tmp_path / "cv").write_text("")
     assert main(_argv(mocap, tmp_path / "cv")) == 1
     assert "a file, not a folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("--steps", "0"), ("--batch-size", "0"), ("--threads", "0"), ("--window", "1"),
+     ("--lr", "-1"), ("--device", "tpu"), ("--val-every", "0")],
+)  # fmt: skip
+def test_values_no_training_can_run_with_are_usage_errors(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str, value: str
+) -> None:
+    """Before crossval.json is written (a run refused later left one behind, which the next
+    run then refused to start over); --lr -1, --window 1 and --device tpu were tracebacks,
+    the last after the data load and the copy baselines' scores."""
+    argv = _argv(mocap, tmp_path / "cv")
+    if option in argv:
+        argv[argv.index(option) + 1] = value
+    else:
+        argv += [option, value]
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    assert f"argument {option}:" in capsys.readouterr().err
+    assert not (tmp_path / "cv").exists()
+
+
+def test_an_out_folder_that_cannot_be_made_is_one_line(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "file").write_text("")
+    argv = _argv(mocap, tmp_path / "cv")
+    argv[argv.index("--out") + 1] = str(tmp_path / "file" / "cv")  # was a FileNotFoundError
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out ")
+    assert "cannot create the folder" in err

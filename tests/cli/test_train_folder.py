@@ -4,6 +4,7 @@ must be positive; a folder that cannot be made is a one-line error. All before a
 from __future__ import annotations
 
 import argparse
+import shutil
 from pathlib import Path
 
 import pytest
@@ -11,6 +12,8 @@ import pytest
 from robot_retarget.cli import train_cmd
 from robot_retarget.errors import RetargetError
 from robot_retarget.nn.run_folder import clear_run
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "motion"
 
 
 def _args(out: Path, *extra: str) -> argparse.Namespace:
@@ -56,9 +59,88 @@ def test_a_refused_run_deletes_nothing(tmp_path: Path) -> None:
     assert (out / "last.pt").read_text() == "old run"
 
 
-def test_steps_and_an_unmakeable_folder_are_refused(tmp_path: Path) -> None:
-    with pytest.raises(train_cmd.TrainArgumentError, match="--steps must be at least 1, got 0"):
-        train_cmd._claim_run_folder(_args(tmp_path / "a", "--steps", "0"))
+def _mocap(root: Path) -> Path:
+    """Two subjects of the fixture clips (one to train on, one to validate)."""
+    for subject, name in (("s1", "tiny_walk.bvh"), ("s2", "mixamo.bvh")):
+        (root / subject).mkdir(parents=True)
+        shutil.copy(FIXTURES / name, root / subject / name)
+    return root
+
+
+@pytest.mark.parametrize(
+    ("extra", "error", "says"),
+    [
+        (["--window", "8", "--model-config", "no_such_option=1"], RetargetError, "no_such_option"),
+        (["--window", "500"], RetargetError, "no clip has 500 frames"),
+    ],
+)
+def test_force_deletes_the_old_run_only_once_the_new_one_can_start(
+    tmp_path: Path, extra: list[str], error: type[Exception], says: str
+) -> None:
+    """A model setting or a window refused after the data have loaded: each was refused after
+    the old run had been deleted (every checkpoint lost, only the new config.json left)."""
+    out = tmp_path / "run"
+    out.mkdir()
+    for name in ("config.json", "last.pt", "best.pt", "best.npz"):
+        (out / name).write_text("old run")
+    data = _mocap(tmp_path / "mocap")
+    args = _args(out, "--force", "--data", str(data), "--val-subjects", "s2", "--robots", "",
+                 "--steps", "1", "--quiet", *extra)  # fmt: skip
+    with pytest.raises(error, match=says):
+        train_cmd.run(args)
+    assert sorted(p.name for p in out.iterdir()) == ["best.npz", "best.pt", "config.json",
+                                                      "last.pt"]  # fmt: skip
+    assert all(p.read_text() == "old run" for p in out.iterdir())
+
+
+def test_a_new_run_that_stops_before_its_first_checkpoint_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C (or any failure) in the first steps: no config.json stays behind to make the
+    next run in that folder need --force."""
+    from robot_retarget.nn import train as train_module
+
+    def stop(*_: object, **__: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(train_module, "training_step", stop)
+    out = tmp_path / "run"
+    data = _mocap(tmp_path / "mocap")
+    args = _args(out, "--data", str(data), "--val-subjects", "s2", "--robots", "",
+                 "--steps", "2", "--batch-size", "2", "--window", "8", "--quiet",
+                 "--model-config", "hidden_size=16")  # fmt: skip
+    with pytest.raises(KeyboardInterrupt):
+        train_cmd.run(args)
+    assert not out.exists()
+
+
+def test_a_subject_both_excluded_and_validated_on_is_named(tmp_path: Path) -> None:
+    with pytest.raises(
+        train_cmd.TrainArgumentError,
+        match=r"--exclude-subjects leaves out 06, which --val-subjects \(06,08,12\) validates",
+    ):
+        train_cmd.run(_args(tmp_path / "run", "--exclude-subjects", "06"))
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("--batch-size", "0"), ("--window", "1"), ("--lr", "-1"), ("--device", "tpu"),
+     ("--val-every", "0"), ("--checkpoint-every", "0"), ("--log-every", "0"),
+     ("--threads", "0"), ("--steps", "0"), ("--loader-workers", "-1")],
+)  # fmt: skip
+def test_values_no_training_can_run_with_are_usage_errors(
+    tmp_path: Path, option: str, value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Each was a traceback (ValueError, ZeroDivisionError after a step, torch's RuntimeError),
+    some after the data had loaded and --force had deleted the old run."""
+    with pytest.raises(SystemExit) as info:
+        _args(tmp_path / "run", option, value)
+    assert info.value.code == 2
+    assert f"argument {option}:" in capsys.readouterr().err
+
+
+def test_an_unmakeable_folder_is_refused(tmp_path: Path) -> None:
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     with pytest.raises(train_cmd.TrainArgumentError, match="cannot create the run folder"):

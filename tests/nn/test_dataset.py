@@ -88,6 +88,9 @@ def test_missing_or_empty_folder_is_a_clear_error(tmp_path: Path) -> None:
     (tmp_path / "empty").mkdir()
     with pytest.raises(DatasetError, match=r"no \.bvh files"):
         load_dataset(tmp_path / "empty")
+    (tmp_path / "clip.bvh").write_text("HIERARCHY\n")
+    with pytest.raises(DatasetError, match="a file, not a folder: --data names the folder"):
+        load_dataset(tmp_path / "clip.bvh")  # it said "no such data folder"
 
 
 @settings(max_examples=25)

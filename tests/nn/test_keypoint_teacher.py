@@ -105,6 +105,7 @@ def test_teacher_files_that_cannot_teach_are_refused_by_name(tmp_path: Path) -> 
     cases = [
         ([CHECKPOINTS / "agnostic2d_clip.npz"], r"numpy runtime.*pass its torch checkpoint"),
         ([tmp_path / "gone.pt"], r"gone.pt: no such keypoint checkpoint; pass a keypoint"),
+        ([tmp_path / "gone.npz"], r"gone.npz: no such keypoint checkpoint; pass a keypoint"),
         ([CHECKPOINTS / "default.pt"], r"not a robot-retarget-keypoint-model checkpoint; pass"),
         ([shipped, shipped], r"is the same file as .*pass each teacher once"),
     ]
