@@ -58,8 +58,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--max-frames", type=positive_int, default=None, help="first frames per clip"
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the denoising noise")
-    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    output = parser.add_mutually_exclusive_group()
+    output.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    output.add_argument("--markdown", action="store_true", help="print a Markdown table")
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
     parser.add_argument(
         "--without-foot-lock",
@@ -91,12 +92,13 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.nn.inference import DEFAULT_MODEL, load_model, shipped_checkpoints
     from robot_retarget.nn.models.san import SAN
 
+    _check_arguments(args)
     names = args.model or ["copy", "copy-scaled"] + (
         [DEFAULT_MODEL] if DEFAULT_MODEL in shipped_checkpoints() else []
     )
     models = [load_model(n) for n in names]
     subjects: tuple[str, ...] = DEFAULT_VALIDATION_SUBJECTS
-    if args.val_subjects:
+    if args.val_subjects is not None:
         subjects = tuple(s for s in args.val_subjects.split(",") if s)
     fps = DEFAULT_FPS if args.fps is None else args.fps
     dataset = load_dataset(args.data, fps=fps, cache_dir=args.cache_dir)
@@ -115,6 +117,12 @@ def run(args: argparse.Namespace) -> int:
     robot_names = [r for r in (args.robot or ["op3"]) if r != "none"]
     robots = robot_skeletons(tuple(robot_names))
     settings = EvalSettings(robots=tuple(robot_names), max_frames=args.max_frames, seed=args.seed)
+    if args.without_foot_lock and not any(_has_foot_lock(m) for m in models):
+        print(
+            "note: --without-foot-lock scores models that have a foot lock a second time; none "
+            f"of {names} has one, so no row is added",
+            file=sys.stderr,
+        )
     if args.native_input and not any(isinstance(m.model, SAN) for m in models):
         print(
             "note: --native-input scores skeleton-aware models (san) a second time; none of "
@@ -164,6 +172,26 @@ def run(args: argparse.Namespace) -> int:
                     mark = "met" if check.met else "NOT met"
                     print(f"  {check.goal}: {mark} ({check.detail})")
     return 0
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    """Before any model or clip loads: a --val-subjects that names no subject, a model named
+    twice, and 'none' beside a robot (each was taken: an empty table with exit code 0, the
+    default subjects, a row printed twice, the robot alone)."""
+    if args.val_subjects is not None and not [s for s in args.val_subjects.split(",") if s]:
+        raise SystemExit(
+            f"eval: --val-subjects {args.val_subjects!r} names no subject; give subjects such as "
+            "06,08,12, or 'all' for every clip of --data (leave it out for the default split)"
+        )
+    twice = sorted({m for m in args.model or [] if args.model.count(m) > 1})
+    if twice:
+        raise SystemExit(f"eval: --model {', '.join(twice)} given twice; name each model once")
+    robots = args.robot or []
+    if "none" in robots and len(robots) > 1:
+        others = ", ".join(r for r in robots if r != "none")
+        raise SystemExit(
+            f"eval: --robot none (no robot target) contradicts --robot {others}; pass one of them"
+        )
 
 
 def _has_foot_lock(m: LoadedModel) -> bool:

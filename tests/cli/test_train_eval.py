@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import re
 import shutil
 from pathlib import Path
 from types import ModuleType
@@ -151,6 +152,29 @@ def test_eval_scores_a_whole_folder_of_other_performers(
     assert clips_scored(["--val-subjects", "s1"]) == 2
 
 
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["--val-subjects", ","], "--val-subjects ',' names no subject"),  # scored 0 clips, exit 0
+        (["--val-subjects", ""], "--val-subjects '' names no subject"),  # the default subjects
+        (["--model", "copy", "--model", "copy"], "--model copy given twice"),  # two equal rows
+        (["--robot", "none", "--robot", "op3"], "--robot none (no robot target) contradicts"),
+    ],
+)
+def test_eval_refuses_what_it_would_misread_before_any_work(
+    tmp_path: Path, argv: list[str], says: str
+) -> None:
+    with pytest.raises(SystemExit, match=re.escape(says)):
+        _run(eval_cmd, [*argv, "--data", str(tmp_path / "none")])
+
+
+def test_eval_json_and_markdown_exclude_each_other(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        _run(eval_cmd, ["--json", "--markdown"])
+    assert info.value.code == 2
+    assert "not allowed with argument" in capsys.readouterr().err
+
+
 def test_san_trains_and_is_scored_on_the_files_own_skeletons(
     mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -203,3 +227,14 @@ def test_eval_scores_the_network_without_its_foot_lock_beside_it(
     assert [r["model"] for r in results] == ["default", "default, no foot lock", "copy"]
     scores = [{k: v for k, v in r.items() if k != "model"} for r in results[:2]]
     assert scores[0] != scores[1]  # the lock holds a foot somewhere in these walks
+
+
+def test_eval_says_when_without_foot_lock_adds_no_row(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["--model", "copy", "--without-foot-lock", "--data", str(mocap), "--json"]
+    argv += ["--max-frames", "20", "--cache-dir", str(tmp_path / "c")]
+    assert _run(eval_cmd, argv) == 0
+    captured = capsys.readouterr()
+    assert "note: --without-foot-lock scores models that have a foot lock" in captured.err
+    assert len(json.loads(captured.out)["results"]) == 1
