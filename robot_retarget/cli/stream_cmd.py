@@ -311,6 +311,8 @@ def run(args: argparse.Namespace) -> int:
             f"no input frame from {source.describe()}: nothing was retargeted or sent ({why})",
             file=sys.stderr,
         )
+        if args.record is not None:
+            print(f"nothing recorded: {args.record} not written", file=sys.stderr)
         return 1
     if args.record is not None:
         _save_record(args.record, result.log, config.joint_names, rate, force=args.force)

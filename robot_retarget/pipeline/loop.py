@@ -290,7 +290,10 @@ class ControlLoop:
         s = self.settings
         self._q_cmd = self._present()
         self._start_q = self._q_cmd.copy()
+        described = self.source.describe()
         self.source.start()
+        if self.source.describe() != described:  # e.g. port 0: the port the system chose
+            self.report(f"listening on {self.source.describe()}")
         # Known once started (a tcp-bvh stream sends its skeleton in the header).
         self.step.set_source(self.source.skeleton)
         self.step.warm_up()

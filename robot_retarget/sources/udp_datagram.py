@@ -9,6 +9,7 @@ canonical joints; robot_retarget.sources.keypoints.udp_keypoints: 2D keypoints).
 
 from __future__ import annotations
 
+import errno
 import hmac
 import ipaddress
 import socket
@@ -64,6 +65,7 @@ class UdpDatagramSource(SocketSource):
         check_bind_address(host, allow_remote, "UDP bind")
         self.host = host
         self.port = port
+        self._bound: tuple[str, int] | None = None
         self.token = token
         super().__init__(max_queue)
         self._skeleton = skeleton
@@ -81,11 +83,12 @@ class UdpDatagramSource(SocketSource):
 
     @property
     def address(self) -> tuple[str, int]:
-        """The bound (host, port); valid after start()."""
-        if self._sock is None:
-            return (self.host, self.port)
-        host, port = self._sock.getsockname()[:2]
-        return (str(host), int(port))
+        """The bound (host, port) once started (and after it stops: the summary names the port
+        a port 0 was given); before, the one asked for."""
+        if self._sock is not None:
+            host, port = self._sock.getsockname()[:2]
+            self._bound = (str(host), int(port))
+        return self._bound or (self.host, self.port)
 
     def describe(self) -> str:
         host, port = self.address
@@ -99,10 +102,10 @@ class UdpDatagramSource(SocketSource):
         except OSError as exc:
             sock.close()
             raise SourceError(
-                f"cannot bind UDP {self.host}:{self.port} ({exc}); is another stream running? "
-                "choose another port"
+                f"cannot bind UDP {self.host}:{self.port} ({exc}); {_bind_advice(exc)}"
             ) from exc
         self._start_receiver(sock, f"{self.SCHEME}-source")
+        _ = self.address  # remembered: the port stays known once the socket closes
 
     def _run(self) -> None:
         sock = self._sock
@@ -135,3 +138,17 @@ class UdpDatagramSource(SocketSource):
     @abstractmethod
     def handle_packet(self, data: bytes, recv_s: float) -> SourceFrame | None:
         """Decode and check one datagram; queue and return the frame, or count the drop."""
+
+
+def _bind_advice(exc: OSError) -> str:
+    """What to do when a bind fails, by its cause."""
+    if exc.errno == errno.EADDRINUSE:
+        return "is another stream running? choose another port"
+    if exc.errno == errno.EADDRNOTAVAIL:
+        return (
+            "that address is not one of this machine's: bind one of its own addresses, or "
+            "0.0.0.0 for all of them (with --allow-remote)"
+        )
+    if exc.errno == errno.EACCES:
+        return "ports below 1024 need administrator rights: choose a port of 1024 or more"
+    return "choose another address or port"

@@ -428,3 +428,19 @@ def test_the_simulator_refuses_a_rate_the_servos_would(capsys: pytest.CaptureFix
         with pytest.raises(UnsafeCommandError, match=r"at 2000 Hz .*run at 1570 Hz or less"):
             stream_cmd.run(_args("--source", clip, "--backend", backend, "--rate", "2000"))
     assert capsys.readouterr().err == ""  # refused before the stream's first line
+
+
+def test_a_stream_on_port_0_names_its_port_and_a_record_it_skipped(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Port 0: the port the system chose is printed once bound (the banner said ':0' only),
+    and with no sender the --record path is said not to be written."""
+    record = tmp_path / "rec.npz"
+    argv = ["--source", "udp://127.0.0.1:0", "--duration", "0.3", "--record", str(record)]
+    assert stream_cmd.run(_args(*argv)) == 1
+    err = capsys.readouterr().err
+    port = int(err.split("listening on udp://127.0.0.1:")[1].split()[0])
+    assert port > 0
+    assert f"no input frame from udp://127.0.0.1:{port}" in err
+    assert f"nothing recorded: {record} not written" in err
+    assert not record.exists()

@@ -126,5 +126,14 @@ def test_port_in_use_is_a_source_error() -> None:
     with UdpSource("127.0.0.1", 0) as first:
         assert isinstance(first, UdpSource)
         second = UdpSource("127.0.0.1", first.address[1])
-        with pytest.raises(SourceError, match="cannot bind"):
+        with pytest.raises(SourceError, match=r"cannot bind.*is another stream running"):
             second.start()
+        port = first.address[1]
+    assert first.address == ("127.0.0.1", port) != ("127.0.0.1", 0)  # known after it stops
+
+
+def test_an_address_not_of_this_machine_says_so() -> None:
+    # TEST-NET-1 (RFC 5737): never one of this machine's addresses
+    with pytest.raises(SourceError, match="not one of this machine's") as info:
+        UdpSource("192.0.2.1", 0, allow_remote=True).start()
+    assert "another stream" not in str(info.value)
