@@ -423,6 +423,11 @@ def _lead_in(frames: int) -> str:
     return f" ({frames} of them the lead-in's)" if frames else ""
 
 
+def _n(count: int, noun: str) -> str:
+    """``count`` and ``noun``, in the plural unless it is one ("1 frame", "2 frames")."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
     ok = [r for r in reports if r.error is None]
     frames = sum(r.frames for r in ok)
@@ -434,22 +439,22 @@ def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
             lines.append(f"  FAILED {clip_error(r)}")
         else:
             lines.append(
-                f"  {r.out}: {r.frames} frames{_lead_in(r.lead_in_frames)}, {r.wall_s:.2f} s "
-                f"({r.solved_frames / max(r.wall_s, 1e-9):.0f} frames/s), limits "
-                f"{'respected' if r.limits_ok else 'VIOLATED'}, safety clipped "
-                f"{r.clipped_commands} commands ({r.clipped_joints} joint values), "
-                f"{r.fallbacks} solver fallbacks"
+                f"  {r.out}: {_n(r.frames, 'frame')}{_lead_in(r.lead_in_frames)}, "
+                f"{r.wall_s:.2f} s ({r.solved_frames / max(r.wall_s, 1e-9):.0f} frames/s), "
+                f"limits {'respected' if r.limits_ok else 'VIOLATED'}, safety clipped "
+                f"{_n(r.clipped_commands, 'command')} ({_n(r.clipped_joints, 'joint value')}), "
+                f"{_n(r.fallbacks, 'solver fallback')}"
             )
     if not ok:
         lines.append(f"  total: 0 of {len(reports)} clips converted")
         return "\n".join(lines)
     lines.append(
-        f"  total: {len(ok)} of {len(reports)} clips, {frames} frames"
+        f"  total: {len(ok)} of {len(reports)} clips, {_n(frames, 'frame')}"
         f"{_lead_in(frames - solved)}, wall time "
         f"{total_wall_s:.2f} s, {solved / max(compute, 1e-9):.0f} frames/s, limits "
         f"{'respected' if all(r.limits_ok for r in ok) else 'VIOLATED'}, safety clipped "
-        f"{sum(r.clipped_commands for r in ok)} commands, "
-        f"{sum(r.fallbacks for r in ok)} solver fallbacks"
+        f"{_n(sum(r.clipped_commands for r in ok), 'command')}, "
+        f"{_n(sum(r.fallbacks for r in ok), 'solver fallback')}"
     )
     warning = fallback_warning(sum(r.fallbacks for r in ok), solved)
     if warning is not None:

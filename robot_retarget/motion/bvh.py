@@ -515,10 +515,14 @@ def _parse_motion_rows(
             rows.append(tokens)
             row_lines.append(i + 1)
         i += 1
-    if len(rows) < wanted:
+    # Rows past the ones wanted are counted too: a truncated file is refused whatever
+    # --max-frames reads of it, as it is without.
+    have = len(rows) + (sum(1 for k in range(i, n) if lines[k].strip()) if wanted < frames else 0)
+    if have < frames:
         raise MotionFormatError(
-            f"Frames says {frames} but the file has only {len(rows)} motion rows; "
-            "the file is truncated (re-export it, or fix the Frames count)",
+            f"Frames says {frames} but the file has only {have} motion "
+            f"row{'' if have == 1 else 's'}; the file is truncated (re-export it, or fix the "
+            "Frames count)",
             path=where,
             line=n + 1,
         )

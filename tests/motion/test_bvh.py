@@ -185,6 +185,10 @@ def test_max_frames_reads_only_the_start() -> None:
     assert clip.num_frames == 1
     # Rows after max_frames are not even looked at: a broken tail does not matter.
     assert parse_bvh(SMALL + "garbage\n", max_frames=1).num_frames == 1
+    # ... but a file cut short is refused whatever max_frames reads of it (it was taken).
+    cut = SMALL.rsplit("\n", 2)[0] + "\n"  # Frames: 2, one row
+    with pytest.raises(MotionFormatError, match="only 1 motion row; the file is truncated"):
+        parse_bvh(cut, max_frames=1)
 
 
 @given(
