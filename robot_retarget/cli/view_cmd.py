@@ -13,8 +13,12 @@ import sys
 import threading
 import webbrowser
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from robot_retarget.cli.tcp_port_arg import tcp_port_argument
+
+if TYPE_CHECKING:
+    from robot_retarget.motion.trajectory import RobotTrajectory
 
 NAME = "view"
 HELP = "Show a trajectory and its clip in a browser."
@@ -56,6 +60,9 @@ def run(args: argparse.Namespace) -> int:
         from robot_retarget.motion.human_motion import load_motion
 
         motion = load_motion(args.clip)
+        warning = clip_mismatch(motion.duration_s, motion.fps, trajectory)
+        if warning is not None:
+            print(f"warning: {warning}", file=sys.stderr)
         side = 1.2 * RobotFigure(config).height_m()
         performer = performer_figure(motion, config, offset=(0.0, side, 0.0))
     page = TrajectoryPage(config, trajectory, performer, host=args.host, port=args.port)
@@ -71,3 +78,18 @@ def run(args: argparse.Namespace) -> int:
     finally:
         page.close()
     return 0
+
+
+def clip_mismatch(clip_s: float, clip_fps: float, trajectory: RobotTrajectory) -> str | None:
+    """Why ``--clip`` looks like another clip than the trajectory's (its length differs from
+    the trajectory's own frames, the lead-in left out, by more than a frame of either), or
+    None. A conversion with --max-frames is shorter than its clip: said, not refused."""
+    own = trajectory.num_frames - int((trajectory.times_s() < -1e-9).sum())
+    traj_s = own / trajectory.fps
+    if abs(traj_s - clip_s) <= 1.0 / clip_fps + 1.0 / trajectory.fps:
+        return None
+    return (
+        f"--clip is {clip_s:.2f} s long and the trajectory {traj_s:.2f} s: is it the clip the "
+        "trajectory was converted from (or a part of it, with --max-frames)? The two are drawn "
+        "from the same start."
+    )

@@ -186,6 +186,19 @@ class RobotTrajectory:
     def read(cls, path: str | Path) -> RobotTrajectory:
         """Read a CSV, JSON or NPZ trajectory (chosen by suffix)."""
         p = Path(path)
+        if p.is_dir():
+            raise MotionFormatError(
+                "a folder, not a trajectory file: name one of the files in it (convert writes "
+                "one per clip)",
+                path=p,
+            )
+        if p.suffix.lower() == ".bvh":
+            raise MotionFormatError(
+                "a BVH motion clip, not a robot trajectory: convert it first (convert CLIP.bvh "
+                "--out TRAJ.npz), then take TRAJ.npz (view shows the clip beside it with --clip "
+                "CLIP.bvh)",
+                path=p,
+            )
         suffix = _format_of(p)
         try:
             if suffix == ".csv":

@@ -184,6 +184,11 @@ def test_unsupported_suffix_and_missing_file(tmp_path: Path) -> None:
         make().write(tmp_path / "t.txt")
     with pytest.raises(MotionFormatError, match="cannot read"):
         RobotTrajectory.read(tmp_path / "absent.csv")
+    # what view and inspect are given by mistake: each named for what it is
+    with pytest.raises(MotionFormatError, match="a folder, not a trajectory file"):
+        RobotTrajectory.read(tmp_path)  # it said "unsupported trajectory file type '(none)'"
+    with pytest.raises(MotionFormatError, match=r"a BVH motion clip.*convert it first"):
+        RobotTrajectory.read(tmp_path / "walk.bvh")
 
 
 def test_constructor_validation_and_times() -> None:
