@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import re
 import sys
 import time
 from functools import partial
@@ -77,10 +78,14 @@ def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     out_dir: Path = args.out_dir
     tag = "_2d" if args.input == "2d" else ""
-    traj_path = out_dir / f"demo_{args.robot}{tag}.npz"
-    stream_path = out_dir / f"demo_{args.robot}{tag}_stream.npz"
-    bvh_path = out_dir / f"demo_{args.robot}{tag}.bvh"
-    gif_path = out_dir / f"demo_{args.robot}{tag}_preview.gif"
+    # Named after the config's own name, never the --robot text: a path given there must not
+    # put the outputs in other folders.
+    config = load_robot_config(args.robot)
+    stem = f"demo_{_file_safe(config.name)}{tag}"
+    traj_path = out_dir / f"{stem}.npz"
+    stream_path = out_dir / f"{stem}_stream.npz"
+    bvh_path = out_dir / f"{stem}.bvh"
+    gif_path = out_dir / f"{stem}_preview.gif"
     # Every output checked before any work (robot_retarget.cli.output_paths): the folder is
     # created if missing and must be writable; nothing is replaced without --force.
     outputs = [traj_path, stream_path, bvh_path] + ([] if args.no_preview else [gif_path])
@@ -94,7 +99,6 @@ def run(args: argparse.Namespace) -> int:
     def say(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
-    config = load_robot_config(args.robot)
     motion = demo_motion(fps=30.0)
     motion = motion.frames(0, min(motion.num_frames, round(args.seconds * 30.0) + 1))
     truth = motion
@@ -256,3 +260,8 @@ def run(args: argparse.Namespace) -> int:
     lines.append(f"  total time {time.perf_counter() - t_start:.1f} s")
     print("\n".join(lines))
     return 0 if all(checks.values()) else 1
+
+
+def _file_safe(name: str) -> str:
+    """``name`` as one file-name part: anything but letters, digits, '-', '_' and '.' is '_'."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", name).strip(".") or "robot"

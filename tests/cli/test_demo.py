@@ -106,3 +106,17 @@ def test_ctrl_c_while_streaming_stops_the_demo_and_says_what_was_written(
     assert "[FAIL]" not in captured.out
     assert "[PASS]" not in captured.out
     assert sorted(p.name for p in out.iterdir()) == ["demo_op3.bvh", "demo_op3.npz"]
+
+
+@pytest.mark.usefixtures("no_work")
+def test_outputs_are_named_after_the_config_not_the_robot_argument(tmp_path: Path) -> None:
+    """--robot as a path: the files are demo_op3*, inside --out-dir (they were named after the
+    path's text, in folders made from it, and with '..' in it outside --out-dir)."""
+    repo = Path(__file__).resolve().parents[2]
+    robot = repo / "configs" / "robots" / "op3" / ".." / "op3" / "op3.yaml"
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "demo_op3.npz").write_text("an earlier demo")
+    with pytest.raises(RetargetError, match=r"out/demo_op3\.npz.*--force"):
+        demo_cmd.run(_args("--out-dir", str(out), "--robot", str(robot)))
+    assert [p.name for p in tmp_path.rglob("*") if p.is_file()] == ["demo_op3.npz"]
