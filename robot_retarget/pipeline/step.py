@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
+from robot_retarget.errors import InvalidMotionError
 from robot_retarget.optimize import Retargeter, SolveResult
 from robot_retarget.optimize.live_frame import LiveFrameSolver
 from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets
@@ -142,6 +143,7 @@ class RetargetStep:
         t0 = time.perf_counter()
         if settle and q_prev is not None:
             raise ValueError("settle starts a sequence: it takes no q_prev")
+        local_quats, root_pos = _checked_frame(local_quats, root_pos)
         quats, root = self.online.step(local_quats, root_pos)
         t1 = time.perf_counter()
         if not settle and self.live is not None and self.live.write(quats, dt_s, q_prev=q_prev):
@@ -176,3 +178,25 @@ def _trunk_frame(targets: FrameTargets) -> FloatArray:
     if targets.trunk_frame is None:  # every builder sets it; a custom one may not
         raise ValueError("the step's target builder gave no trunk frame")
     return targets.trunk_frame
+
+
+def _checked_frame(
+    local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """The frame as arrays, refused before it reaches the network: a NaN taken into its state
+    (its history of frames) would make every later frame fail too."""
+    quats = np.asarray(local_quats, dtype=np.float64)
+    root = np.asarray(root_pos, dtype=np.float64)
+    if quats.ndim != 2 or quats.shape[1] != 4:
+        raise InvalidMotionError(
+            f"local_quats must be (joints, 4) rotations w-x-y-z, got {quats.shape}"
+        )
+    if root.shape != (3,):
+        raise InvalidMotionError(f"root_pos must be (3,) metres, got {root.shape}")
+    if not (np.isfinite(quats).all() and np.isfinite(root).all()):
+        what = "local_quats" if not np.isfinite(quats).all() else "root_pos"
+        raise InvalidMotionError(
+            f"{what} holds NaN or infinite values; the frame is refused (nothing changed: the "
+            "next good frame goes on from the last)"
+        )
+    return quats, root

@@ -96,3 +96,31 @@ def test_fast_paths_give_the_reference_commands(
         np.testing.assert_allclose(out.q, want[t][0], rtol=0, atol=1e-9)
         np.testing.assert_allclose(out.root_pos, want[t][1], rtol=0, atol=1e-12)
         np.testing.assert_allclose(out.root_quat, want[t][2], rtol=0, atol=1e-12)
+
+
+def test_a_nan_frame_is_refused_and_leaves_the_step_as_it_was() -> None:
+    """A NaN reached the network's history: every later good frame failed until reset(), and
+    a NaN root_pos came out as the frame's root (and stayed in the next ones)."""
+    from robot_retarget.errors import InvalidMotionError
+    from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.skeleton.canonical import default_canonical_skeleton
+
+    config = load_robot_config("op3")
+    rest = np.zeros((22, 4))
+    rest[:, 0] = 1.0
+    root = np.array([0.0, 0.9, 0.0])
+    steps = [RetargetStep(config, "default", default_canonical_skeleton()) for _ in range(2)]
+    for step in steps:
+        step(rest, root, 0.008, settle=True)
+    bad_quats = rest.copy()
+    bad_quats[3, 1] = np.nan
+    for quats, pos, what in ((bad_quats, root, "local_quats"),
+                             (rest, np.array([np.nan, 0.9, 0.0]), "root_pos")):  # fmt: skip
+        with pytest.raises(InvalidMotionError, match=f"{what} holds NaN"):
+            steps[0](quats, pos, 0.008)
+    with pytest.raises(InvalidMotionError, match=r"\(joints, 4\)"):
+        steps[0](rest[:, :3], root, 0.008)
+    # the refused frames changed nothing: the step goes on as one that never saw them
+    a, b = steps[0](rest, root, 0.008), steps[1](rest, root, 0.008)
+    np.testing.assert_array_equal(a.q, b.q)
+    np.testing.assert_array_equal(a.root_pos, b.root_pos)
