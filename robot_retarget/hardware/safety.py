@@ -86,7 +86,11 @@ class SafetyLayer(JointBackend):
         """Start the step bound from ``q`` (None: the next command only gets position clamping)."""
         self._prev_q = None if q is None else np.clip(q, self.lower, self.upper)
         self._prev_t = None
-        self._prev_sent = None
+        # Where the servos are, on their grid: the first command's ticks keep to the bound
+        # from there too (the nearest tick could step half a tick past a ramp's step).
+        self._prev_sent = (
+            None if self._prev_q is None or self._quantum is None else self.rounded(self._prev_q)
+        )
 
     def disconnect(self) -> None:
         self.backend.disconnect()
@@ -94,8 +98,11 @@ class SafetyLayer(JointBackend):
     def read_state(self) -> JointState:
         return self.backend.read_state()
 
-    def clamp(self, cmd: JointCommand) -> JointCommand:
-        """The safe version of ``cmd`` (updates the statistics; sends nothing)."""
+    def clamp(self, cmd: JointCommand, max_step: FloatArray | None = None) -> JointCommand:
+        """The safe version of ``cmd`` (updates the statistics; sends nothing). ``max_step``
+        (J,) rad: a tighter bound on this command's step from the last one sent, as the
+        caller moved it (a ramp at a fraction of the speed): a backend's tick rounding keeps to
+        it too (the nearest tick could step past it by half a tick)."""
         q = cmd.q
         names = self._names
         if q.shape != (len(names),):
@@ -154,6 +161,8 @@ class SafetyLayer(JointBackend):
                     s.per_joint[n] += 1
         self._prev_q = q_safe
         self._prev_t = cmd.t_s
+        if bound is not None and max_step is not None:
+            bound = np.minimum(bound, max_step)
         return JointCommand(self._on_the_grid(q_safe, bound), cmd.t_s)
 
     def _on_the_grid(self, q_safe: FloatArray, bound: FloatArray | None) -> FloatArray:

@@ -203,7 +203,10 @@ class ControlLoop:
             self.transitions.append((now, mode))
             self.report(f"[{mode.value}] {why}")
 
-    def _send(self, q: FloatArray, now: float, play_t: float) -> None:
+    def _send(
+        self, q: FloatArray, now: float, play_t: float, max_step: FloatArray | None = None
+    ) -> None:
+        """``max_step``: the step ``q`` was moved by at most (a ramp's), kept on the tick grid."""
         # Stamps 1 ppb more than a period apart: the safety layer bounds each step by exactly
         # v_max · period, the optimizer's bound (see convert.py).
         stamp = self._k * self.period_s * (1.0 + 1e-9) + self._stamp_shift_s
@@ -214,7 +217,7 @@ class ControlLoop:
         self._last_stamp = stamp
         # As SafetyLayer.send, in two steps: the loop keeps the safe command itself (on the
         # backend's tick grid where it rounds), not the backend's echo.
-        safe = self.safety.clamp(JointCommand(q, stamp))
+        safe = self.safety.clamp(JointCommand(q, stamp), max_step)
         self._t_clamped = self.clock()
         self.safety.backend.send(safe)
         self._t_sent = self.clock()
@@ -385,7 +388,7 @@ class ControlLoop:
             if self._released:
                 return
             q = toward(self._q_cmd, self.config.safe_pose, self._ramp_step)
-            self._send(q, now, interp.play_time(now))
+            self._send(q, now, interp.play_time(now), self._ramp_step)
             reached = bool(np.all(np.abs(self.config.safe_pose - self._q_cmd) < self._reach_tol))
             if reached and self.config.hardware.torque_off_at_safe_pose:
                 self._release()
@@ -413,10 +416,12 @@ class ControlLoop:
         t_stepped = self.clock()
         self._settle_next = False
         q = out.q
+        ramp_step = None
         if self.mode is Mode.RAMP_IN:
             # The optimizer runs ahead on the motion's own trajectory (its velocity box is
             # centred on its own last solution); the robot pursues it.
             q, outcome = self._ramp.advance(now, self._q_cmd, out.q)
+            ramp_step = self._ramp.last_step
             if outcome is RampOutcome.ON_TRAJECTORY:
                 # q == out.q: the optimizer's history is the robot's, tracking goes on seamlessly.
                 self._ramp_done = True
@@ -428,7 +433,7 @@ class ControlLoop:
                 self._set_mode(Mode.TRACKING, now, "ramp timed out: tracking from here")
         if sample.late:
             self.stats.late_ticks += 1
-        self._send(q, now, sample.play_t_s)
+        self._send(q, now, sample.play_t_s, ramp_step)
         if sample.newest.seq != self._last_seq:
             self._last_seq = sample.newest.seq
             self.stats.latency_s.append(self.clock() - sample.newest.recv_s)
@@ -451,7 +456,7 @@ class ControlLoop:
         next_tick = now
         while np.any(np.abs(goal - self._q_cmd) >= self._reach_tol) and self.clock() < deadline:
             q = toward(self._q_cmd, goal, self._ramp_step)
-            self._send(q, self.clock(), float("nan"))
+            self._send(q, self.clock(), float("nan"), self._ramp_step)
             next_tick += self.period_s
             self._k += 1
             wait = next_tick - self.clock()

@@ -68,6 +68,7 @@ class StartRamp:
         self.settings = settings
         self.max_step = np.asarray(max_step, dtype=np.float64)
         self.slow_step = self.max_step * settings.fraction
+        self.last_step = self.slow_step  # the step of the last advance()
         self._start = 0.0
         self._rise_start: float | None = None
 
@@ -96,6 +97,7 @@ class StartRamp:
         if self._rise_start is None and elapsed >= s.min_s and (close or elapsed >= s.timeout_s):
             self._rise_start = now_s
         step = self.max_step * self.speed_fraction(now_s)
+        self.last_step = step  # the safety layer keeps the tick-rounded command within it
         q = toward(q_robot, q_goal, step)
         if elapsed >= s.min_s and bool(np.all(gap <= step)):
             return q, RampOutcome.ON_TRAJECTORY

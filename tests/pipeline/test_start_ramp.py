@@ -118,3 +118,42 @@ def test_ramp_settings_are_checked() -> None:
         LoopSettings(ramp_min_s=-0.1)
     with pytest.raises(ValueError, match="ramp_min_s"):
         LoopSettings(ramp_min_s=3.0, ramp_timeout_s=3.0)
+
+
+class _TickBackend(SimBackend):
+    """The simulator with a servo's tick grid, as the Dynamixel backend writes goals."""
+
+    def __init__(self, config: RobotConfig, **kwargs: object) -> None:
+        from robot_retarget.robot.servo_units import ServoUnits
+
+        super().__init__(config, **kwargs)  # type: ignore[arg-type]
+        self._units = ServoUnits(config)
+
+    @property
+    def position_quantum_rad(self) -> np.ndarray:
+        return np.asarray(self._units.rad_per_tick)
+
+    def rounded(self, q: np.ndarray) -> np.ndarray:
+        return np.asarray(self._units.from_ticks(self._units.to_ticks(q)))
+
+
+def test_the_ramp_keeps_its_fraction_on_the_servos_tick_grid(
+    robot: tuple[RobotConfig, Retargeter], copy_model: LoadedModel, motion: HumanMotion
+) -> None:
+    """Goals rounded to the nearest tick had stepped half a tick past the ramp's step, the
+    first command from the servos' own pose most (demo on Poppy: 26 % for 25 %)."""
+    config, retargeter = robot
+    settings = LoopSettings(duration_s=1.5)
+    source = ScriptedSource(motion)
+    step = RetargetStep(config, copy_model, source.skeleton, retargeter=retargeter)
+    clock = FakeClock()
+    backend = _TickBackend(config, clock=clock.now)
+    loop = ControlLoop(
+        step, source, backend, settings, record=True, clock=clock.now, sleep=clock.sleep
+    )
+    result = loop.run()
+    t_ramp = result.transitions[0][0]
+    start = backend.rounded(np.asarray(config.init_pose))  # where tick servos report it
+    fraction = _ramp_steps(loop, result, t_ramp, start, settings.ramp_min_s)
+    assert fraction.max() <= settings.ramp_speed_fraction * (1 + 1e-9)
+    assert fraction.max() > 0.9 * settings.ramp_speed_fraction
