@@ -196,3 +196,52 @@ def test_values_that_parse_but_mean_nothing_are_named(tmp_path: Path) -> None:
     jsonl.write_text(json.dumps({**first, "fps": 1}).replace('"fps": 1', '"fps": 1e999') + "\n")
     with pytest.raises(KeypointFormatError, match="frame 0: 'fps' must be a camera frame rate"):
         load_keypoints(jsonl)
+
+
+def test_openpose_frames_keep_their_time_by_the_numbers_in_their_names(tmp_path: Path) -> None:
+    """A file OpenPose did not write is a frame nobody was seen in, and unpadded numbers go
+    in number order (a missing file had moved every later frame one early, and 'clip_10_'
+    came before 'clip_9_')."""
+    folder = _copy("openpose_body25", tmp_path)
+    (folder / "video_000000000001_keypoints.json").unlink()
+    seq = load_keypoints(folder)
+    assert seq.num_frames == 3
+    assert not seq.valid[1].any()
+    assert seq.xy[2, Coco.nose, 0] == 602  # frame 2's own points, at frame 2
+    unpadded = tmp_path / "unpadded"
+    unpadded.mkdir()
+    for k in range(3):
+        src = FIXTURES / "openpose_body25" / f"video_00000000000{k}_keypoints.json"
+        shutil.copy(src, unpadded / f"clip_{k + 8}_keypoints.json")  # clip_8, clip_9, clip_10
+    seq = load_keypoints(unpadded)
+    assert seq.xy[:, Coco.nose, 0].tolist() == [600, 601, 602]
+
+
+def test_coco_jsonl_frames_keep_their_time_and_errors_name_the_line(tmp_path: Path) -> None:
+    """A line's 'frame' (else 't') places it: skipped frames are frames nobody was seen in
+    (a jump from frame 1 to 4 was read as contiguous); errors name the file's line."""
+    path = _copy("coco17.jsonl", tmp_path)
+    lines = [json.loads(x) for x in path.read_text().splitlines()]
+    for k, obj in enumerate(lines):
+        obj.pop("t", None)
+        obj["frame"] = [10, 11, 14][k]
+    path.write_text("\n\n".join(json.dumps(x) for x in lines) + "\n")  # blank lines between
+    seq = load_keypoints(path)
+    assert seq.num_frames == 5
+    assert seq.valid[[0, 1, 4]].any(axis=1).all()
+    assert not seq.valid[[2, 3]].any()
+    for k, obj in enumerate(lines):
+        obj.pop("frame")
+        obj["t"] = [0.0, 1 / 30, 3 / 30][k]
+    path.write_text("\n".join(json.dumps(x) for x in lines) + "\n")
+    assert load_keypoints(path).num_frames == 4
+    lines[2]["t"] = 0.0
+    path.write_text("\n".join(json.dumps(x) for x in lines) + "\n")
+    with pytest.raises(KeypointFormatError, match="lines must come in time order") as info:
+        load_keypoints(path)
+    assert info.value.line == 3
+    path.write_text(json.dumps(lines[0]) + "\n\n{not json\n")
+    with pytest.raises(KeypointFormatError) as info:
+        load_keypoints(path)
+    assert info.value.line == 3  # the file's line, after a blank one
+    assert "line 2" not in str(info.value).split("line 3")[1]

@@ -71,30 +71,38 @@ def people_of(obj: dict[str, Any]) -> Any:
 def read_coco_jsonl(
     path: Path, *, fps: float | None = None, min_confidence: float = DEFAULT_MIN_CONFIDENCE
 ) -> KeypointSequence:
-    """A COCO-17 JSON-lines file → the followed person's sequence; errors name file and frame
-    (the frame index is the line's position among non-empty lines, 0-based)."""
+    """A COCO-17 JSON-lines file → the followed person's sequence; errors name the file, its
+    line and the frame. A line's ``frame`` number (else its ``t`` seconds at the frame rate)
+    places it in time: frames skipped between two lines are frames nobody was seen in, so the
+    rest keep their time; without either, each line is the next frame. Blank lines are not
+    frames."""
     frames = PersonFrames()
     rate = fps
-    index = 0
+    index = 0  # the next frame's position in the sequence
+    first: tuple[float, str] | None = None  # the first line's frame number or time
+    line_no = 0
     with path.open("rb") as fh:
         for raw in fh:
+            line_no += 1
             try:
-                line = raw.decode("utf-8-sig" if index == 0 else "utf-8")
+                line = raw.decode("utf-8-sig" if line_no == 1 else "utf-8")
             except UnicodeDecodeError as exc:
                 raise KeypointFormatError(
                     f"not UTF-8 text (byte {raw[exc.start]:#04x} at column {exc.start + 1}): "
                     "JSON lines are UTF-8",
                     path=path,
                     frame=index,
+                    line=line_no,
                 ) from None
             if not line.strip():
                 continue
-            obj = parse_json(line, path, index)
+            obj = parse_json(line.rstrip("\r\n"), path, index, line_no)
             if not isinstance(obj, dict) or not isinstance(people_of(obj), list):
                 raise KeypointFormatError(
                     "each line must be an object with a 'people' (or 'instances') list",
                     path=path,
                     frame=index,
+                    line=line_no,
                 )
             if index == 0 and rate is None and "fps" in obj:
                 rate = obj["fps"]
@@ -103,17 +111,70 @@ def read_coco_jsonl(
                         f"'fps' must be a camera frame rate, {FPS_RANGE}, got {rate!r}",
                         path=path,
                         frame=0,
+                        line=line_no,
                     )
+            at, first = _position(obj, first, index, 30.0 if rate is None else float(rate))
+            if at is not None and first is not None:
+                if at < index:
+                    raise KeypointFormatError(
+                        f"its {first[1]} puts it at frame {at}, not after the line before "
+                        f"(frame {index - 1}): lines must come in time order",
+                        path=path,
+                        frame=index,
+                        line=line_no,
+                    )
+                if at - index > _MAX_GAP_FRAMES:
+                    raise KeypointFormatError(
+                        f"its {first[1]} skips {at - index} frames after frame {index - 1}; "
+                        f"more than {_MAX_GAP_FRAMES} is no gap in one recording",
+                        path=path,
+                        frame=index,
+                        line=line_no,
+                    )
+                for _ in range(at - index):  # frames the estimator wrote no line for
+                    frames.add([])
+                index = at
             people = []
             for k, person in enumerate(people_of(obj)):
                 try:
                     people.append(parse_coco_person(person, min_confidence))
                 except CocoPersonError as exc:
                     raise KeypointFormatError(
-                        f"person {k}: {exc}", path=path, frame=index
+                        f"person {k}: {exc}", path=path, frame=index, line=line_no
                     ) from None
             frames.add(people)
             index += 1
     if index == 0:
         raise KeypointFormatError("no frames (the file is empty)", path=path)
     return frames.sequence(float(rate if rate is not None else 30.0), source=str(path))
+
+
+_MAX_GAP_FRAMES = 100_000  # frames skipped between two lines, at most (an hour at 30 fps: ~1e5)
+
+
+def _number(value: Any) -> float | None:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    return float(value) if ok and np.isfinite(value) else None
+
+
+def _position(
+    obj: dict[str, Any], first: tuple[float, str] | None, index: int, rate: float
+) -> tuple[int | None, tuple[float, str] | None]:
+    """Where a line's ``frame`` (else ``t`` at ``rate``) puts it, counted from the first
+    line's (None where the line has neither, or the first line had neither); and the first
+    line's value and which field it was."""
+    frame, t = _number(obj.get("frame")), _number(obj.get("t"))
+    if first is None:
+        if index > 0:  # the first line carried neither: lines are frames
+            return None, None
+        if frame is not None:
+            return 0, (frame, "frame")
+        if t is not None:
+            return 0, (t, "t")
+        return None, None
+    origin, field = first
+    if field == "frame" and frame is not None:
+        return round(frame - origin), first
+    if field == "t" and t is not None:
+        return round((t - origin) * rate), first
+    return None, first

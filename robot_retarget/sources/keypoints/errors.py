@@ -35,18 +35,28 @@ def read_text(path: Path, frame: int | None = None) -> str:
         ) from None
 
 
-def parse_json(text: str, path: str | Path, frame: int | None = None) -> Any:
-    """``text`` as JSON, or KeypointFormatError naming the file (and frame) and the fault."""
+def parse_json(
+    text: str, path: str | Path, frame: int | None = None, line: int | None = None
+) -> Any:
+    """``text`` as JSON, or KeypointFormatError naming the file (and frame, and the file's
+    ``line`` for a document on one line) and the fault."""
     doc, fault = json_fault(text)
     if fault is not None:
-        raise KeypointFormatError(fault, path=path, frame=frame)
+        raise KeypointFormatError(fault, path=path, frame=frame, line=line)
     return doc
 
 
 class KeypointFormatError(MotionFormatError):
     """``path`` and ``frame`` (0-based, None when the whole file is wrong) as attributes."""
 
-    def __init__(self, message: str, *, path: str | Path, frame: int | None = None) -> None:
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: str | Path,
+        frame: int | None = None,
+        line: int | None = None,
+    ) -> None:
         self.frame = frame
         where = message if frame is None else f"frame {frame}: {message}"
-        super().__init__(where, path=path)
+        super().__init__(where, path=path, line=line)

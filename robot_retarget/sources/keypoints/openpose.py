@@ -3,14 +3,17 @@
 Each file (OpenPose 1.x, doc/02_output.md): ``{"version": 1.3, "people": [{"person_id": [-1],
 "pose_keypoints_2d": [x0, y0, c0, x1, y1, c1, ...], ...}]}``, pixel coordinates, a missing
 point written as 0, 0, 0. The body model follows from the length: 25 × 3 values = BODY_25
-(OpenPose's default), 18 × 3 = COCO-18 (``--model_pose COCO``). Files are taken in name order
-(OpenPose names them ``<video>_<12-digit frame>_keypoints.json``). Both layouts are mapped onto
-COCO-17 (their extra points — neck, mid-hip, feet — are not used).
+(OpenPose's default), 18 × 3 = COCO-18 (``--model_pose COCO``). Files are taken in the order
+of the frame numbers in their names (OpenPose names them ``<video>_<12-digit
+frame>_keypoints.json``); a number skipped is a frame in which nobody was seen, so the frames
+after it keep their time. Names without numbers are taken in name order. Both layouts are
+mapped onto COCO-17 (their extra points — neck, mid-hip, feet — are not used).
 """
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -47,8 +50,28 @@ _INDEX = {n: _to_coco(layout) for n, (_name, layout) in LAYOUTS.items()}
 
 
 def openpose_files(folder: Path) -> list[Path]:
-    """The folder's ``*.json`` files in name order (frame order for OpenPose's names)."""
-    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() == ".json")
+    """The folder's ``*.json`` files in frame order: by the number in their names where every
+    name has one (OpenPose's ``<video>_<frame>_keypoints.json``; unpadded numbers too), else
+    in name order."""
+    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() == ".json")
+    numbers = frame_numbers(files)
+    return files if numbers is None else [f for _, f in sorted(zip(numbers, files, strict=True))]
+
+
+def frame_numbers(files: list[Path]) -> list[int] | None:
+    """Each file's frame number (the last run of digits in its name), or None where a name
+    has none or two share one: the files are then frames in name order."""
+    numbers = []
+    for f in files:
+        digits = _DIGITS.findall(f.stem)
+        if not digits:
+            return None
+        numbers.append(int(digits[-1]))
+    return numbers if len(set(numbers)) == len(numbers) else None
+
+
+_DIGITS = re.compile(r"\d+")
+_MAX_GAP_FRAMES = 100_000  # frames missing between two files, at most
 
 
 def is_openpose_folder(folder: Path) -> bool:
@@ -114,8 +137,23 @@ def read_openpose_folder(
     files = openpose_files(folder)
     if not files:
         raise KeypointFormatError("no .json frame files in this folder", path=folder)
+    numbers = frame_numbers(files)
     frames = PersonFrames()
-    for i, path in enumerate(files):
+    i = 0  # the next frame's position
+    for k, path in enumerate(files):
+        if numbers is not None and k > 0:
+            gap = numbers[k] - numbers[k - 1] - 1
+            if gap > _MAX_GAP_FRAMES:
+                raise KeypointFormatError(
+                    f"its name's frame number {numbers[k]} comes {gap} frames after "
+                    f"{numbers[k - 1]}; more than {_MAX_GAP_FRAMES} is no gap in one recording",
+                    path=path,
+                    frame=i,
+                )
+            for _ in range(gap):  # a frame OpenPose wrote no file for: nobody seen then
+                frames.add([])
+            i += gap
         doc = parse_json(read_text(path, i), path, i)
         frames.add(parse_openpose_people(doc, path, i, min_confidence))
+        i += 1
     return frames.sequence(fps, source=str(folder))
