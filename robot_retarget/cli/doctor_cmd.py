@@ -167,9 +167,9 @@ def run(args: argparse.Namespace) -> int:
             if bad and not args.fix_registers:
                 verdict += "; `doctor --fix-registers` writes them"
             what = (
-                "CW/CCW angle limits"
+                "CW/CCW angle limits, status return level"
                 if bus_cfg.protocol == 1.0
-                else "position limits, homing offset, drive mode"
+                else "position limits, homing offset, drive mode, status return level"
             )
             print(f"  registers other tools leave ({what}), per servo: {verdict}")
             for findings in by_servo.values():

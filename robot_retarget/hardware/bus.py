@@ -297,6 +297,16 @@ class DynamixelBus:
 
         return self.transact(once, f"write @{address} to {servo_id}")
 
+    def write_no_reply(self, servo_id: int, address: int, data: bytes) -> None:
+        """Write without waiting for a status reply: to a servo whose Status Return Level
+        answers reads only (a reply to a write would never come)."""
+        self.transact(
+            lambda: self.write_packet(
+                self._packet(servo_id, p.INST_WRITE, self._addr(address) + data)
+            ),
+            f"write @{address} to {servo_id}",
+        )
+
     def sync_write_packet(self, address: int, size: int, values: Mapping[int, bytes]) -> bytes:
         """The Sync Write packet for ``values`` (servo ID → ``size`` data bytes)."""
         head = self._addr(address) + (p.le_bytes(size, 2) if self._v2 else bytes((size,)))

@@ -1,6 +1,6 @@
 """Servo EEPROM that other tools may have left behind, checked against the robot config.
 
-A servo keeps its EEPROM across tools. Three kinds of leftovers silently change what a goal
+A servo keeps its EEPROM across tools. Four kinds of leftovers silently change what a goal
 position means or whether it is obeyed:
 
 - **angle / position limits** (Protocol 1.0 CW/CCW Angle Limit, Protocol 2.0 Min/Max Position
@@ -13,6 +13,9 @@ position means or whether it is obeyed:
   goal lands); LeRobot's calibration writes it.
 - **Drive Mode bit 0, reverse** (Protocol 2.0): mirrors the direction of rotation; LeRobot's
   calibration writes it too. The config's ``direction`` already handles a joint's sign.
+- **Status Return Level** (both protocols): below 2 a servo answers reads but not writes, so
+  every write this project waits a reply for times out (the stream's connect fails after
+  retries, blaming power and cabling). Expected: 2, a reply to every instruction.
 
 What this project expects: limits that contain every tick the config's joint range can command
 (the config's limits through its direction and zero offset, robot.servo_units; the fix writes
@@ -35,6 +38,7 @@ from robot_retarget.robot.config import JointConfig
 from robot_retarget.robot.servo_units import JointServoUnits
 
 REVERSE_BIT = 0x01  # Drive Mode bit 0 (XM430 e-Manual): 1 = reverse mode
+STATUS_TO_ALL = 2  # Status Return Level: a status packet for every instruction (the default)
 
 # What to tell the user whenever registers disagree with the config.
 FIX_ADVICE = (
@@ -219,6 +223,9 @@ def check_servo(
         cleared = drive & ~REVERSE_BIT  # the other bits (profile, torque-on-by-goal) stay
         add("drive_mode", drive, f"{cleared} (reverse bit 0 clear)", (cleared, cleared),
             not drive & REVERSE_BIT, cleared)  # fmt: skip
+    level = read_registers(bus, sid, table, ["status_return_level"])["status_return_level"]
+    add("status_return_level", level, f"{STATUS_TO_ALL} (a reply to every instruction)",
+        (STATUS_TO_ALL, STATUS_TO_ALL), level == STATUS_TO_ALL, STATUS_TO_ALL)  # fmt: skip
     return out
 
 
@@ -245,6 +252,12 @@ def fix_servo(
     # says Hardware Error Status is set); Protocol 1.0 instruction, checksum, range and angle
     # limit errors (voltage, overheating and overload bits report the servo, not the write).
     refused = 0x7F if bus.protocol == 2.0 else 0x5A
+    level = next((f for f in todo if f.register == "status_return_level"), None)
+    if level is not None and level.fix is not None:
+        # First, and with no reply awaited: at a lower level the servo answers no write.
+        reg = table["status_return_level"]
+        bus.write_no_reply(sid, reg.address, p.le_bytes(level.fix, reg.size))
+        todo = [f for f in todo if f is not level]
     writes = [("torque_enable", 0)] + [(f.register, f.fix) for f in todo if f.fix is not None]
     for name, value in writes:
         reg = table[name]

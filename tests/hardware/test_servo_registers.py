@@ -51,10 +51,12 @@ def _leftovers(joint: JointConfig) -> list[tuple[str, int]]:
     """(register, value) another tool could leave on ``joint``'s servo, each one enough to
     refuse: limits one tick inside the joint's range, any Homing Offset, the reverse bit."""
     lo, hi = joint_tick_range(joint)
+    quiet = [("status_return_level", 1)]  # answers reads, not writes
     if control_table(joint.servo_model).protocol == 1.0:
-        return [("cw_angle_limit", lo + 1), ("ccw_angle_limit", hi - 1)]
+        return [("cw_angle_limit", lo + 1), ("ccw_angle_limit", hi - 1), *quiet]
     return [("min_position_limit", lo + 1), ("max_position_limit", hi - 1),
-            ("homing_offset", 1), ("homing_offset", -2048), ("drive_mode", 1)]  # fmt: skip
+            ("homing_offset", 1), ("homing_offset", -2048), ("drive_mode", 1),
+            *quiet]  # fmt: skip
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
@@ -209,6 +211,30 @@ def test_fix_writes_homing_and_drive_mode_back(
         assert servo.get("max_position_limit") == 4095
     finally:
         backend.disconnect()
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_a_servo_that_answers_no_write_is_named_and_fixed(
+    request: pytest.FixtureRequest, make_buses: MakeBuses, robot: str
+) -> None:
+    """Status Return Level 1 (answers reads only): the stream's connect timed out on its first
+    write, blaming power and cabling, and doctor said OK. Now named, and fixed with a write
+    that waits for no reply, then the other registers as usual."""
+    config, sims = _robot(request, robot)
+    joint, servo = _servo(config, sims, config.joints[-1].name)
+    servo._put("status_return_level", 1)
+    servo._put("torque_enable", 1)
+    backend = DynamixelBackend(config, make_buses(config, sims), handle_signals=False)
+    with pytest.raises(RegisterMismatchError, match="status_return_level"):
+        backend.connect()
+    fixing = DynamixelBackend(config, make_buses(config, sims), handle_signals=False,
+                              fix_registers=True)  # fmt: skip
+    fixing.connect()
+    try:
+        assert servo.get("status_return_level") == 2
+        assert fixing.connected
+    finally:
+        fixing.disconnect()
 
 
 def test_a_value_the_servo_does_not_keep_is_reported_after_the_fix(
