@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.errors import MotionFormatError, OutputWriteError
+from robot_retarget.errors import InvalidMotionError, MotionFormatError, OutputWriteError
 from robot_retarget.npz_errors import npz_unreadable_reason
 
 ROOT_POS_COLUMNS: tuple[str, ...] = ("root_x", "root_y", "root_z")
@@ -48,7 +48,7 @@ def _optional(value: npt.ArrayLike | None, shape: tuple[int, ...], name: str) ->
         return None
     arr = np.array(value, dtype=np.float64)
     if arr.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+        raise InvalidMotionError(f"{name} must have shape {shape}, got {arr.shape}")
     arr.setflags(write=False)
     return arr
 
@@ -85,13 +85,13 @@ class RobotTrajectory:
         names = tuple(str(n) for n in self.joint_names)
         q = np.array(self.q, dtype=np.float64)
         if q.ndim != 2 or q.shape[1] != len(names) or q.shape[0] == 0:
-            raise ValueError(f"q must have shape (T>0, {len(names)}), got {q.shape}")
+            raise InvalidMotionError(f"q must have shape (T>0, {len(names)}), got {q.shape}")
         if len(set(names)) != len(names) or any(not n for n in names):
-            raise ValueError(f"joint names must be unique and non-empty: {list(names)}")
+            raise InvalidMotionError(f"joint names must be unique and non-empty: {list(names)}")
         if not (math.isfinite(self.fps) and self.fps > 0.0):
-            raise ValueError(f"fps must be positive, got {self.fps}")
+            raise InvalidMotionError(f"fps must be positive, got {self.fps}")
         if not math.isfinite(self.t0):
-            raise ValueError(f"t0 must be finite, got {self.t0}")
+            raise InvalidMotionError(f"t0 must be finite, got {self.t0}")
         t = q.shape[0]
         q.setflags(write=False)
         object.__setattr__(self, "joint_names", names)

@@ -115,6 +115,11 @@ def available_robots() -> list[str]:
 
 def resolve_config_path(name_or_path: str | os.PathLike[str]) -> Path:
     """The file a name or path refers to; ConfigError lists the known robots if none."""
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise ConfigError(
+            f"a robot is named by a config name or a YAML path, got {name_or_path!r}",
+            allowed=", ".join(available_robots()) or "none found",
+        )
     text = os.fspath(name_or_path)
     path = Path(text)
     if (

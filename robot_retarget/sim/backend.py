@@ -18,6 +18,7 @@ from robot_retarget.errors import HardwareError
 from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.pose_check import checked_pose
 from robot_retarget.sim.kinematic import KinematicRobot
 
 
@@ -32,7 +33,7 @@ class SimBackend(JointBackend):
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.config = config
-        self.q0 = np.array(config.init_pose if q0 is None else q0, dtype=np.float64)
+        self.q0 = checked_pose(config, config.init_pose if q0 is None else q0, "q0")
         self.time_constant_s = time_constant_s
         self.realtime = realtime
         self._clock = clock

@@ -18,6 +18,7 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.hardware.bus import buses_from_config
 from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.pose_check import checked_pose
 from robot_retarget.sim.dxl_bus import SimulatedBus, buses_for_robot
 
 
@@ -32,7 +33,7 @@ class SimulatedRobotBus:
         packet_timeout_ms: float = 20.0,
     ) -> None:
         self.config = config
-        q = config.init_pose if q_rad is None else np.asarray(q_rad, dtype=np.float64)
+        q = checked_pose(config, config.init_pose if q_rad is None else q_rad, "q_rad")
         self.buses: dict[str, SimulatedBus] = buses_for_robot(config, q_rad=list(q))
         self.ports: dict[str, str] = {}
         self.packet_timeout_ms = packet_timeout_ms
