@@ -221,7 +221,7 @@ def test_a_servo_that_answers_no_write_is_named_and_fixed(
     write, blaming power and cabling, and doctor said OK. Now named, and fixed with a write
     that waits for no reply, then the other registers as usual."""
     config, sims = _robot(request, robot)
-    joint, servo = _servo(config, sims, config.joints[-1].name)
+    _joint, servo = _servo(config, sims, config.joints[-1].name)
     servo._put("status_return_level", 1)
     servo._put("torque_enable", 1)
     backend = DynamixelBackend(config, make_buses(config, sims), handle_signals=False)
