@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import re
 import sys
 import time
@@ -67,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.sources.replay import ReplaySource
 
     # One message per option, naming only the wrong one (``not >`` also refuses NaN).
-    if not args.speed > 0:
+    if not (args.speed > 0 and math.isfinite(args.speed)):
         raise RetargetError(f"--speed must be positive, got {args.speed:g}")
     if not 0 < args.seconds <= 12.0:
         raise RetargetError(

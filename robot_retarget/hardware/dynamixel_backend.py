@@ -341,7 +341,15 @@ class DynamixelBackend(JointBackend):
                     bad = fix_servo(g.bus, joint, table, bad)  # read back: what did not stick
                 mismatches += bad
             if mismatches:
-                raise RegisterMismatchError(mismatches, g.name, after_fix=self.fix_registers)
+                port = getattr(g.bus, "port_name", None)
+                many = len(self.config.buses) > 1
+                raise RegisterMismatchError(
+                    mismatches,
+                    g.name,
+                    after_fix=self.fix_registers,
+                    robot=self.config.name,
+                    port=None if port is None else f"{g.name}={port}" if many else str(port),
+                )
 
     def _write_checked(
         self, g: _BusGroup, sid: int, table: ControlTable, name: str, value: int

@@ -48,6 +48,18 @@ FIX_ADVICE = (
 )
 
 
+def fix_advice(robot: str | None = None, port: str | None = None) -> str:
+    """:data:`FIX_ADVICE` with the robot and the bus's ``--port`` item filled in where known."""
+    if robot is None:
+        return FIX_ADVICE
+    args = f"--robot {robot}" + ("" if port is None else f" --port {port}")
+    return (
+        f"Run `robot-retarget doctor {args}` to see every servo's registers, then `doctor "
+        f"{args} --fix-registers` (or `stream --fix-registers`, DynamixelBackend(..., "
+        "fix_registers=True)) to write the expected values with the torque off"
+    )
+
+
 @dataclass(frozen=True)
 class RegisterFinding:
     """One register of one servo: the value found, the values the config accepts
@@ -83,7 +95,13 @@ class RegisterMismatchError(HardwareError):
     mismatch found. ``after_fix``: the values were written and did not read back."""
 
     def __init__(
-        self, findings: list[RegisterFinding], bus: str, *, after_fix: bool = False
+        self,
+        findings: list[RegisterFinding],
+        bus: str,
+        *,
+        after_fix: bool = False,
+        robot: str | None = None,
+        port: str | None = None,
     ) -> None:
         first = findings[0]
         self.servo_id = first.servo_id
@@ -107,7 +125,9 @@ class RegisterMismatchError(HardwareError):
                 "register with ROBOTIS' Dynamixel Wizard"
             )
         else:
-            super().__init__(f"{what}. Another tool left it there; nothing was moved. {FIX_ADVICE}")
+            super().__init__(
+                f"{what}. Another tool left it there; nothing was moved. {fix_advice(robot, port)}"
+            )
 
 
 class EepromLockedError(HardwareError):

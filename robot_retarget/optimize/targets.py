@@ -106,7 +106,8 @@ def check_array(name: str, value: npt.ArrayLike, shape: tuple[int, ...]) -> Floa
     if not np.isfinite(a).all():
         bad = np.argwhere(~np.isfinite(a))
         raise SolveError(
-            f"{name} contains NaN or infinite values (first at index {tuple(bad[0])}); "
+            f"{name} contains NaN or infinite values (first at index "
+            f"{tuple(int(i) for i in bad[0])}); "
             "no command was produced: check the upstream stage (network, motion source)"
         )
     return a

@@ -47,6 +47,7 @@ def test_short_demo_passes_its_checks(tmp_path: Path, capsys: pytest.CaptureFixt
         (("--seconds", "0"), r"^--seconds must be in \(0, 12\] .*got 0$"),
         (("--speed", "0"), r"^--speed must be positive, got 0$"),  # --seconds is fine
         (("--speed", "-2", "--seconds", "4"), r"^--speed must be positive, got -2$"),
+        (("--speed", "inf"), r"^--speed must be positive, got inf$"),  # was "fps must be positive"
     ],
 )
 def test_bad_arguments_name_the_option_and_its_value(

@@ -225,8 +225,10 @@ def test_a_servo_that_answers_no_write_is_named_and_fixed(
     servo._put("status_return_level", 1)
     servo._put("torque_enable", 1)
     backend = DynamixelBackend(config, make_buses(config, sims), handle_signals=False)
-    with pytest.raises(RegisterMismatchError, match="status_return_level"):
+    with pytest.raises(RegisterMismatchError, match="status_return_level") as info:
         backend.connect()
+    # the advice names this robot and its port (it said `doctor --robot R`)
+    assert f"`robot-retarget doctor --robot {config.name} --port " in str(info.value)
     fixing = DynamixelBackend(config, make_buses(config, sims), handle_signals=False,
                               fix_registers=True)  # fmt: skip
     fixing.connect()
