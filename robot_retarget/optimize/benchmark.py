@@ -74,6 +74,8 @@ def load_targets(retargeter: Retargeter, clip: Path, frames: int) -> tuple[ClipT
     """(targets of ``frames`` frames, dt_s) from a BVH clip."""
     from robot_retarget.motion import load_motion
 
+    if clip.is_dir():
+        raise MotionFormatError("a folder: --clip names one BVH clip", path=clip)
     if not clip.is_file():
         raise MotionFormatError(
             "benchmark clip not found: pass --clip PATH or set ROBOT_RETARGET_DATA", path=clip

@@ -245,3 +245,17 @@ def test_coco_jsonl_frames_keep_their_time_and_errors_name_the_line(tmp_path: Pa
         load_keypoints(path)
     assert info.value.line == 3  # the file's line, after a blank one
     assert "line 2" not in str(info.value).split("line 3")[1]
+
+
+def test_an_openpose_folder_with_a_broken_first_file_is_still_openpose_s(tmp_path: Path) -> None:
+    """Told by its files' names: the error names the file (it was taken for a folder of BVH
+    clips, 'no .bvh files in this folder')."""
+    folder = _copy("openpose_body25", tmp_path)
+    first = folder / "video_000000000000_keypoints.json"
+    first.write_text('{"version": 1.3}')
+    assert is_keypoint_input(folder)
+    with pytest.raises(
+        KeypointFormatError, match="expected an object with a 'people' list"
+    ) as info:
+        load_keypoints(folder)
+    assert info.value.path == str(first)

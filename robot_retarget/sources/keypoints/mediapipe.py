@@ -52,7 +52,7 @@ def _size(doc: dict[str, Any], key: str, path: Path) -> float:
     if not 0 < size < math.inf:
         raise KeypointFormatError(
             f"'{key}' must be the image size in pixels (a positive number), got "
-            f"{str(value)[:40]}: MediaPipe's coordinates are normalised by it",
+            f"{repr(value)[:40]}: MediaPipe's coordinates are normalised by it",
             path=path,
         )
     return size

@@ -75,12 +75,15 @@ _MAX_GAP_FRAMES = 100_000  # frames missing between two files, at most
 
 
 def is_openpose_folder(folder: Path) -> bool:
-    """A folder whose first JSON file has a ``people`` list (OpenPose's frame files)."""
+    """A folder of OpenPose's frame files: one named ``*_keypoints.json``, or a first JSON file
+    with a ``people`` list."""
     if not folder.is_dir():
         return False
     files = openpose_files(folder)
     if not files:
         return False
+    if any(f.name.lower().endswith("_keypoints.json") for f in files):
+        return True  # OpenPose's names: a broken first file is the reader's to name
     try:
         doc = json.loads(files[0].read_text(encoding="utf-8-sig"))
     except (OSError, UnicodeDecodeError, ValueError, RecursionError):
