@@ -172,6 +172,22 @@ def _extra_path(base: Path | None, clip: Path, root: Path, suffix: str) -> Path 
     return base
 
 
+def _note_keypoints_left(src: Path) -> None:
+    """Say so when a folder of clips also holds keypoint input, which a folder's conversion
+    does not take (it converted the .bvh clips and passed the rest over without a word)."""
+    kinds = (".json", ".jsonl")
+    left = sorted(p for p in src.rglob("*") if p.is_file() and p.suffix.lower() in kinds)
+    if left:
+        names = ", ".join(str(p.relative_to(src)) for p in left[:3])
+        more = f" and {len(left) - 3} more" if len(left) > 3 else ""
+        print(
+            f"note: {len(left)} .json/.jsonl file(s) under {src} are not converted ({names}"
+            f"{more}): a folder's conversion takes its .bvh clips; convert 2D keypoint input "
+            "one file or one OpenPose folder at a time",
+            file=sys.stderr,
+        )
+
+
 def _plan(
     args: argparse.Namespace, replaceable: Callable[[Path], bool] | None = None
 ) -> list[ClipJob]:
@@ -196,6 +212,8 @@ def _plan(
     pairs = [(src, args.out)] if keypoints else output_paths(src, args.out, suffix)
     if not pairs:
         raise MotionFormatError("no .bvh files in this folder", path=src)
+    if folder:
+        _note_keypoints_left(src)
     owned = replaceable or (lambda _clip: False)
     jobs = [
         ClipJob(

@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from robot_retarget.cli import convert_cmd
 from robot_retarget.evaluation.keypoints_2d import Scorer, keypoints_of
@@ -153,3 +154,19 @@ def test_a_keypoint_model_that_does_not_exist_is_named_before_any_clip(tmp_path:
             "--keypoint-model", "nosuch",
         )  # fmt: skip
     assert not (tmp_path / "x").exists()
+
+
+def test_a_folder_of_clips_says_which_keypoint_files_it_leaves(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import shutil
+
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    shutil.copy(Path(__file__).resolve().parents[1] / "fixtures" / "motion" / "tiny_walk.bvh",
+                folder / "walk.bvh")  # fmt: skip
+    (folder / "cam.jsonl").write_text("{}\n")
+    assert _run(str(folder), "--out", str(tmp_path / "out")) == 0
+    err = capsys.readouterr().err
+    assert "note: 1 .json/.jsonl file(s) under" in err
+    assert "(cam.jsonl): a folder's conversion takes its .bvh clips" in err
