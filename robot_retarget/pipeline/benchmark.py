@@ -70,6 +70,15 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
 
     if args.frames < 1 or args.warmup < 0:
         raise ValueError("--frames must be ≥ 1 and --warmup ≥ 0")
+    from robot_retarget.errors import RetargetError
+
+    if args.source == "2d" and args.positions:
+        raise RetargetError(
+            "--positions times the 3D position packets; --source 2d times keypoint packets: "
+            "pass one of them"
+        )
+    if args.source == "3d" and args.keypoint_model is not None:
+        raise RetargetError("--keypoint-model is about --source 2d's keypoint packets: add it")
     if args.source == "2d":
         from robot_retarget.pipeline.benchmark_2d import run_2d
 

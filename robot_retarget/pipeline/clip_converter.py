@@ -185,7 +185,8 @@ class ClipConverter:
                 log(
                     f"{clip}: {motion.num_frames} keypoint frames at {motion.fps:g} fps, "
                     f"{lifted.missing_fraction:.1%} of points missing, {lifted.frames_held} "
-                    "frame(s) without a body (the last seen pose held), "
+                    "frame(s) without a body (the last seen pose held, the first seen one "
+                    "before it), "
                     f"{lifted.refused_points} point(s) no body could have made refused; "
                     + _camera_summary(lifted.camera, opt.keypoint_image_planes)
                 )

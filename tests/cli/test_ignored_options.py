@@ -132,3 +132,17 @@ def test_eval_robot_refuses_plots_it_cannot_write_before_any_clip(
         main(["eval-robot", "--plots", str(a_file), "--data", str(tmp_path / "none")])
     with pytest.raises(SystemExit, match="--corrupt and --input 2d reports have no plots"):
         main(["eval-robot", "--plots", str(tmp_path), "--corrupt", "jitter"])
+
+
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        (["--source", "2d", "--positions"], "--positions times the 3D position packets"),
+        (["--keypoint-model", "agnostic2d"], "--keypoint-model is about --source 2d's"),
+    ],
+)
+def test_bench_pipeline_refuses_options_its_source_ignores(
+    capsys: pytest.CaptureFixture[str], extra: list[str], says: str
+) -> None:
+    assert main(["bench", "pipeline", "--frames", "5", "--warmup", "0", *extra]) == 1
+    assert says in capsys.readouterr().err
