@@ -152,6 +152,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"  found {len(report.found)} servo(s): {found or '-'}")
         if report.missing:
             print(f"  MISSING (in config, no answer): {report.missing}")
+            print(
+                "    no answer: unpowered, unplugged, another baud rate or protocol, or two "
+                "servos on one ID (their replies collide, so neither answers); to find a "
+                "servo's ID, connect it alone and run doctor (--scan-all on Protocol 1.0)"
+            )
         if report.unexpected:
             print(f"  not in config: {report.unexpected}")
         for sid, expected, got in report.mismatched:

@@ -127,3 +127,27 @@ def test_stream_and_doctor_document_the_same_port_syntax() -> None:
         assert str(text).startswith(PORT_HELP)
         assert "default_port from the robot config's buses" in str(text)
     assert "BUS=PATH" in str(helps[0][0])
+
+
+def test_servos_that_do_not_answer_get_the_likely_causes(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Servo 6 moved onto servo 9's ID: both go silent (their replies collide), and doctor
+    said only MISSING [6, 9]; now it names the causes, two servos on one ID among them."""
+    from robot_retarget.hardware.bus import buses_from_config
+    from robot_retarget.hardware.control_table import control_table
+
+    config = load_robot_config("op3")
+    with SimulatedRobotBus(config) as sim:
+        port = sim.ports["main"]
+        bus = buses_from_config(config, {"main": port})["main"]
+        bus.open()
+        try:
+            reg = control_table(config.joints[0].servo_model)["id"]
+            bus.write(6, reg.address, bytes([9]))
+        finally:
+            bus.close()
+        assert _run("--robot", "op3", "--port", port, "--cycles", "0") == 1
+    out = capsys.readouterr().out
+    assert "MISSING (in config, no answer): [6, 9]" in out
+    assert "two servos on one ID (their replies collide" in out
