@@ -36,7 +36,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="op3", help="robot config name or YAML path")
     parser.add_argument("--model", help=MODEL_HELP)
     parser.add_argument("--speed", type=float, default=1.0, help="stream speed × real time")
-    parser.add_argument("--seconds", type=float, default=12.0, help="clip length to use (≤ 12)")
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        default=12.0,
+        help="clip length to use, 1–12 (the stream's checks need 4 s or more played)",
+    )
     parser.add_argument("--no-preview", action="store_true", help="skip the GIF")
     parser.add_argument("--force", action="store_true", help="replace existing demo outputs")
     parser.add_argument(
@@ -70,9 +75,12 @@ def run(args: argparse.Namespace) -> int:
     # One message per option, naming only the wrong one (``not >`` also refuses NaN).
     if not (args.speed > 0 and math.isfinite(args.speed)):
         raise RetargetError(f"--speed must be positive, got {args.speed:g}")
-    if not 0 < args.seconds <= 12.0:
+    if not 1.0 <= args.seconds <= 12.0:
+        # Below a second the stream cannot reach the file: the ramped start alone takes 0.5 s
+        # and more, and a clip of a frame or two has no motion to compare.
         raise RetargetError(
-            f"--seconds must be in (0, 12] (the demo routine is 12 s long), got {args.seconds:g}"
+            f"--seconds must be in [1, 12] (the demo routine is 12 s long; the stream's checks "
+            f"need 4 s or more of it played), got {args.seconds:g}"
         )
     if args.keypoint_model is not None and args.input != "2d":
         raise RetargetError("--keypoint-model lifts the 2D demo's keypoints: add --input 2d")

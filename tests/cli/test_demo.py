@@ -43,8 +43,9 @@ def test_short_demo_passes_its_checks(tmp_path: Path, capsys: pytest.CaptureFixt
 @pytest.mark.parametrize(
     ("argv", "said"),
     [
-        (("--seconds", "20"), r"^--seconds must be in \(0, 12\] .*got 20$"),
-        (("--seconds", "0"), r"^--seconds must be in \(0, 12\] .*got 0$"),
+        (("--seconds", "20"), r"^--seconds must be in \[1, 12\] .*got 20$"),
+        (("--seconds", "0"), r"^--seconds must be in \[1, 12\] .*got 0$"),
+        (("--seconds", "0.01"), r"^--seconds must be in \[1, 12\] .*got 0.01$"),  # 1 frame
         (("--speed", "0"), r"^--speed must be positive, got 0$"),  # --seconds is fine
         (("--speed", "-2", "--seconds", "4"), r"^--speed must be positive, got -2$"),
         (("--speed", "inf"), r"^--speed must be positive, got inf$"),  # was "fps must be positive"
