@@ -179,6 +179,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.runtime.loader import load_runtime_model
     from robot_retarget.skeleton.canonical import default_canonical_skeleton
     from robot_retarget.sources import open_source
+    from robot_retarget.sources.socket_source import SocketSource
 
     _check_source_options(args)
     _check_backend_options(args)
@@ -259,6 +260,16 @@ def run(args: argparse.Namespace) -> int:
     loop = ControlLoop(
         step, source, backend, settings, report=report, record=bool(args.record), mailbox=mailbox
     )
+    if isinstance(source, SocketSource):
+        # Bound (or connected) before the robot is: a port in use or a server not there is
+        # said before any servo is touched, and the banner names the port a port 0 got. The
+        # loop's own start() then finds it open, and stops it whatever happens.
+        try:
+            source.start()
+        except BaseException:
+            if page is not None:
+                page.close()
+            raise
     rate = args.rate or config.control_rate_hz
     report(
         f"streaming {source.describe()} → {config.name} ({args.backend}) at {rate:g} Hz, "

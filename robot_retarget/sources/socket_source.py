@@ -27,6 +27,11 @@ class SocketSource(MotionSource):
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
 
+    @property
+    def started(self) -> bool:
+        """The socket is open and read (``start`` has run, ``stop`` not yet)."""
+        return self._thread is not None
+
     def _start_receiver(self, sock: socket.socket, name: str) -> None:
         """Keep ``sock`` and start the thread that runs ``_run`` until stop()."""
         sock.settimeout(RECV_TIMEOUT_S)

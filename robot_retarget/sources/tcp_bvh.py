@@ -110,6 +110,8 @@ class TcpBvhSource(SocketSource):
         return f"tcp-bvh://{self.host}:{self.port}"
 
     def start(self) -> None:
+        if self.started:  # opened early (stream binds before the robot connects)
+            return
         try:
             sock = socket.create_connection((self.host, self.port), timeout=self.connect_timeout_s)
         except OSError as exc:

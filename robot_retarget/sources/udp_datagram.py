@@ -95,6 +95,8 @@ class UdpDatagramSource(SocketSource):
         return f"{self.SCHEME}://{host}:{port}" + (" (token required)" if self.token else "")
 
     def start(self) -> None:
+        if self.started:  # opened early (stream binds before the robot connects)
+            return
         family = socket.AF_INET6 if ":" in self.host else socket.AF_INET
         sock = socket.socket(family, socket.SOCK_DGRAM)
         try:

@@ -433,14 +433,34 @@ def test_the_simulator_refuses_a_rate_the_servos_would(capsys: pytest.CaptureFix
 def test_a_stream_on_port_0_names_its_port_and_a_record_it_skipped(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Port 0: the port the system chose is printed once bound (the banner said ':0' only),
-    and with no sender the --record path is said not to be written."""
+    """Port 0: the banner names the port the system chose, the source being bound before the
+    robot connects (it said ':0'), and with no sender the --record path is said not to be
+    written."""
     record = tmp_path / "rec.npz"
     argv = ["--source", "udp://127.0.0.1:0", "--duration", "0.3", "--record", str(record)]
     assert stream_cmd.run(_args(*argv)) == 1
     err = capsys.readouterr().err
-    port = int(err.split("listening on udp://127.0.0.1:")[1].split()[0])
+    port = int(err.split("streaming udp://127.0.0.1:")[1].split()[0])
     assert port > 0
     assert f"no input frame from udp://127.0.0.1:{port}" in err
     assert f"nothing recorded: {record} not written" in err
     assert not record.exists()
+
+
+def test_a_source_that_cannot_bind_is_said_before_the_robot_connects(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The bind error comes first: no banner, and the backend is never connected (it was
+    connected, then the source failed)."""
+    from robot_retarget.sim.backend import SimBackend
+
+    def refuse(self: SimBackend) -> None:
+        raise AssertionError("the robot was connected before the source was bound")
+
+    monkeypatch.setattr(SimBackend, "connect", refuse)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        with pytest.raises(SourceError, match="is another stream running"):
+            stream_cmd.run(_args("--source", f"udp://127.0.0.1:{port}", "--duration", "0.3"))
+    assert "streaming" not in capsys.readouterr().err
