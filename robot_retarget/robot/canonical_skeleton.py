@@ -68,10 +68,11 @@ def bone_frame_positions(
     return out
 
 
-def robot_canonical_skeleton(config: RobotConfig) -> Skeleton:
-    """The canonical 22-joint skeleton with the robot's proportions (metres, T-pose)."""
-    bones = bone_frame_positions(config)
-    missing = [f"{a}→{b}" for a, b in REQUIRED_BONES if (a, b) not in bones]
+def check_required_bones(config: RobotConfig) -> None:
+    """ConfigError naming the :data:`REQUIRED_BONES` that ``config`` does not map (the loader
+    checks it, so that a config missing a bone is refused as it is read)."""
+    mapped = {(b.canonical, b.canonical_end) for b in config.bones}
+    missing = [f"{a}→{b}" for a, b in REQUIRED_BONES if (a, b) not in mapped]
     if missing:
         raise ConfigError(
             f"robot {config.name} maps no frames to the canonical bones {', '.join(missing)}; "
@@ -80,6 +81,12 @@ def robot_canonical_skeleton(config: RobotConfig) -> Skeleton:
             key="bones",
             allowed=", ".join(f"{a}→{b}" for a, b in REQUIRED_BONES),
         )
+
+
+def robot_canonical_skeleton(config: RobotConfig) -> Skeleton:
+    """The canonical 22-joint skeleton with the robot's proportions (metres, T-pose)."""
+    check_required_bones(config)
+    bones = bone_frame_positions(config)
 
     def length(a: str, b: str) -> float:
         start, end = bones[(a, b)]

@@ -30,6 +30,7 @@ import yaml
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import ConfigError
 from robot_retarget.robot.bone_geometry import check_bone_geometry
+from robot_retarget.robot.canonical_skeleton import check_required_bones
 from robot_retarget.robot.config import (
     BoneConfig,
     BusConfig,
@@ -174,6 +175,7 @@ def parse_robot_config(text: str, *, path: str | os.PathLike[str] | None = None)
     except yaml.YAMLError as exc:
         raise ConfigError(f"YAML error: {exc}", path=where) from exc
     config = _Builder(where).robot(data)
+    check_required_bones(config)
     check_bone_geometry(config)
     return config
 

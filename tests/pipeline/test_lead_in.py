@@ -12,7 +12,7 @@ from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.optimize.bone_model import body_to_root
 from robot_retarget.pipeline.convert import convert_motion
 from robot_retarget.pipeline.floating_base import trajectory_feet
-from robot_retarget.pipeline.lead_in import lead_in, lead_in_base
+from robot_retarget.pipeline.lead_in import lead_in, lead_in_base, upright_rotation
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 
@@ -104,4 +104,9 @@ def test_any_first_frame_is_led_into_from_upright_with_its_feet_centred(
     first_forward = quat.to_matrix(first_quat) @ body_to_root(op3)[:, 0]
     assert float(forward[:2] @ first_forward[:2]) >= 0.0
     assert float(quats[-1] @ first_quat) > 0.0  # the same sign as the clip's
-    assert quat.angle_between(quats[-1], first_quat) <= angle / (k + 1) * 1.01 + 1e-9
+    # An even pace: the last step is a (k + 1)-th of the turn from upright. The turn is not
+    # ``angle`` itself: a lean axis with a vertical part also turns the heading the upright
+    # start takes (hypothesis found 0.00947 rad against 0.5625 / 60 · 1.01).
+    upright = quat.from_matrix(upright_rotation(op3, quat.to_matrix(first_quat)))
+    turn = float(quat.angle_between(upright, first_quat))
+    assert quat.angle_between(quats[-1], first_quat) <= turn / (k + 1) * (1 + 1e-6) + 1e-9

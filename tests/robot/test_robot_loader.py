@@ -280,3 +280,16 @@ def test_an_unknown_name_lists_the_folders_searched_that_exist(
     assert all(Path(d).is_dir() for d in text.split("(searched ")[1].split(")")[0].split(", "))
     assert f"add its folder to {loader.CONFIG_DIR_ENV}" in text
     assert "allowed: op3, poppy_humanoid" in text
+
+
+def test_a_config_missing_a_required_bone_is_refused_as_it_is_read(
+    tmp_path: Path, op3_text: str
+) -> None:
+    """It loaded, and convert failed later (the README says all twelve are required and the
+    loader names the key)."""
+    line = "  - {canonical: Neck, canonical_end: Head, start: head_pan_link, end: head_point}\n"
+    assert line in op3_text
+    path = _write(tmp_path, op3_text.replace(line, "", 1))
+    with pytest.raises(ConfigError, match=r"key 'bones'.*canonical bones Neck→Head") as info:
+        load_robot_config(path)
+    assert info.value.key == "bones"
