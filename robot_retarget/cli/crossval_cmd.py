@@ -10,10 +10,8 @@ Trainings run one after another in this process; ``--resume`` continues a stoppe
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import sys
-from collections.abc import Iterator
 
 from robot_retarget.cli.data_dir import add_data_argument
 from robot_retarget.number_args import int_at_least, positive_float, positive_int, torch_device
@@ -140,8 +138,7 @@ def run(args: argparse.Namespace) -> int:
             flush=True,
         )
 
-    with _out_folder(args.out):
-        report = crossval(config, resume=args.resume, log=log, progress=progress)
+    report = crossval(config, resume=args.resume, log=log, progress=progress)
     if args.json:
         print(json.dumps(report, indent=2))
     else:
@@ -153,10 +150,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _check_arguments(args: argparse.Namespace) -> None:
-    """Before anything is written to --out: counts that must be positive, the robots named,
-    and an --out that can be a folder (a refused run must leave nothing to delete)."""
+    """Before anything is written to --out (counts are checked as the command line is read):
+    the robots named, a CUDA device torch sees, an --out that can be made and written, and a
+    cross-validation there to --resume (a refused run must leave nothing to delete)."""
     from pathlib import Path
 
+    from robot_retarget.cli.output_paths import check_folder
     from robot_retarget.cli.train_cmd import TrainArgumentError
     from robot_retarget.robot.loader import load_robot_config
 
@@ -169,35 +168,10 @@ def _check_arguments(args: argparse.Namespace) -> None:
         if not torch.cuda.is_available():  # before the data load and the copy baselines' scores
             raise TrainArgumentError(f"--device {args.device}: torch sees no CUDA device; use cpu")
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise TrainArgumentError(f"--out {out}: a file, not a folder; name a folder for the run")
+    # A folder that can be made and written (crossval makes it as it writes crossval.json).
+    check_folder(out, option="--out", create=True)
     if args.resume and not (out / "crossval.json").is_file():
         raise TrainArgumentError(
             f"--resume: nothing to resume, {out} holds no cross-validation (crossval.json); "
             "drop --resume to start one"
         )
-
-
-@contextlib.contextmanager
-def _out_folder(out_text: str) -> Iterator[None]:
-    """--out made for the cross-validation inside (a one-line error if it cannot be); a run
-    that fails before writing into it leaves no empty folder behind where there was none."""
-    from pathlib import Path
-
-    from robot_retarget.cli.train_cmd import TrainArgumentError
-
-    out = Path(out_text)
-    existed = out.exists()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise TrainArgumentError(
-            f"--out {out}: cannot create the folder ({exc.strerror or exc})"
-        ) from None
-    try:
-        yield
-    except BaseException:
-        if not existed:
-            with contextlib.suppress(OSError):
-                out.rmdir()  # only while empty
-        raise

@@ -150,11 +150,10 @@ def run(args: argparse.Namespace) -> int:
                 "eval-robot: --plots draws the clip rows' report; the --corrupt and --input 2d "
                 "reports have no plots, leave it out"
             )
-        if Path(args.plots).exists() and not Path(args.plots).is_dir():
-            raise SystemExit(
-                f"eval-robot: --plots {args.plots} is a file; it names the folder the PNG plots "
-                "go into"
-            )
+        from robot_retarget.cli.output_paths import check_folder
+
+        # A folder that can be made and written, before any clip (the plots come last).
+        check_folder(Path(args.plots), option="--plots", create=True)
     if args.one_euro is not None and args.corrupt is None:
         raise SystemExit("eval-robot: --one-euro smooths the live loop of --corrupt; add --corrupt")
     if (args.keypoint_model or args.clip_keypoint_model or not args.image_planes) and (

@@ -252,13 +252,12 @@ def _run_folder(args: argparse.Namespace) -> Iterator[None]:
 
 
 def _claim_run_folder(args: argparse.Namespace) -> None:
-    """Before any work: --steps is positive, and --out is a folder the run may write — not one
-    that holds another run unless --resume continues it or --force replaces it (deleted by the
-    training itself once its settings and data have loaded, so a refused run deletes nothing)."""
+    """Before any work (--steps is checked as the command line is read): --out is a folder the
+    run may write — not one that holds another run unless --resume continues it or --force
+    replaces it (deleted by the training itself once its settings, data, model and optimizer
+    are accepted, so a refused run deletes nothing)."""
     from robot_retarget.nn.run_folder import run_files
 
-    if args.steps < 1:
-        raise TrainArgumentError(f"--steps must be at least 1, got {args.steps}")
     if args.force and args.resume:
         raise TrainArgumentError("--force starts the run again, --resume continues it: pass one")
     if args.force and int(os.environ.get("WORLD_SIZE", "1")) > 1:

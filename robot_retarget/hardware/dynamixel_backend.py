@@ -341,14 +341,16 @@ class DynamixelBackend(JointBackend):
                     bad = fix_servo(g.bus, joint, table, bad)  # read back: what did not stick
                 mismatches += bad
             if mismatches:
-                port = getattr(g.bus, "port_name", None)
-                many = len(self.config.buses) > 1
+                # The --port item that names this bus: BUS=PATH where the robot has several.
+                port = g.bus.port_name
+                if len(self.config.buses) > 1:
+                    port = f"{g.name}={port}"
                 raise RegisterMismatchError(
                     mismatches,
                     g.name,
                     after_fix=self.fix_registers,
                     robot=self.config.name,
-                    port=None if port is None else f"{g.name}={port}" if many else str(port),
+                    port=port,
                 )
 
     def _write_checked(

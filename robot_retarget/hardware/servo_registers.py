@@ -40,24 +40,19 @@ from robot_retarget.robot.servo_units import JointServoUnits
 REVERSE_BIT = 0x01  # Drive Mode bit 0 (XM430 e-Manual): 1 = reverse mode
 STATUS_TO_ALL = 2  # Status Return Level: a status packet for every instruction (the default)
 
-# What to tell the user whenever registers disagree with the config.
-FIX_ADVICE = (
-    "Run `robot-retarget doctor --robot R` to see every servo's registers, then `doctor --robot "
-    "R --fix-registers` (or `stream --fix-registers`, DynamixelBackend(..., "
-    "fix_registers=True)) to write the expected values with the torque off"
-)
 
-
-def fix_advice(robot: str | None = None, port: str | None = None) -> str:
-    """:data:`FIX_ADVICE` with the robot and the bus's ``--port`` item filled in where known."""
-    if robot is None:
-        return FIX_ADVICE
+def fix_advice(robot: str = "R", port: str | None = None) -> str:
+    """What to tell the user whenever registers disagree with the config, with the robot and
+    the bus's ``--port`` item filled in where known."""
     args = f"--robot {robot}" + ("" if port is None else f" --port {port}")
     return (
         f"Run `robot-retarget doctor {args}` to see every servo's registers, then `doctor "
         f"{args} --fix-registers` (or `stream --fix-registers`, DynamixelBackend(..., "
         "fix_registers=True)) to write the expected values with the torque off"
     )
+
+
+FIX_ADVICE = fix_advice()  # the robot and port not known
 
 
 @dataclass(frozen=True)
@@ -125,9 +120,8 @@ class RegisterMismatchError(HardwareError):
                 "register with ROBOTIS' Dynamixel Wizard"
             )
         else:
-            super().__init__(
-                f"{what}. Another tool left it there; nothing was moved. {fix_advice(robot, port)}"
-            )
+            advice = FIX_ADVICE if robot is None else fix_advice(robot, port)
+            super().__init__(f"{what}. Another tool left it there; nothing was moved. {advice}")
 
 
 class EepromLockedError(HardwareError):

@@ -456,7 +456,8 @@ def train_agnostic2d(
     fresh: bool = False,
 ) -> dict[str, Any]:
     """Train, validate, checkpoint (see the module docstring); returns a JSON-able summary.
-    ``fresh``: a run already in the folder is deleted once the data have loaded."""
+    ``fresh``: a run already in the folder is deleted once the settings, the data, the model
+    and its optimizer are accepted."""
     # The model first: a refused --init-from or option costs no data loading and no files.
     torch.manual_seed(cfg.seed)
     model, start = _initial_model(cfg)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -33,8 +32,8 @@ from robot_retarget.nn.inference import (
     shipped_checkpoints,
 )
 from robot_retarget.nn.models.registry import MODELS, build_model
-from robot_retarget.npz_errors import is_numpy_archive
 from robot_retarget.number_args import non_negative_int, positive_int
+from robot_retarget.runtime.loader import names_runtime_file
 from robot_retarget.runtime.model import RuntimeModel, load_runtime
 from robot_retarget.skeleton.canonical import default_canonical_skeleton
 
@@ -90,13 +89,6 @@ def resolve(name: str) -> tuple[LoadedModel, str]:
     return LoadedModel(name=name, model=build_model(name).eval()), "untrained"
 
 
-def is_runtime_file(name: str) -> bool:
-    """``name`` is an exported numpy runtime file (by content; a missing ``.npz`` too, so that
-    the runtime reader says it is missing)."""
-    path = Path(name)
-    return is_numpy_archive(path) or (name.endswith(".npz") and not path.exists())
-
-
 def _runtime_record(name: str, args: argparse.Namespace) -> dict[str, Any]:
     """An exported runtime's one row, ``online-numpy``: it holds no torch model to time."""
     if args.mode == "clip":
@@ -145,7 +137,7 @@ def time_online(
     src, tgt = default_canonical_skeleton().offsets, _target_offsets()
     online: OnlineStep = (
         online_retargeter(model, src, tgt)
-        if numpy_twin or isinstance(model, RuntimeModel)
+        if numpy_twin or isinstance(model, RuntimeModel)  # (the second: for the type checker)
         else OnlineRetargeter(model, src, tgt)
     )
     online.reset()
@@ -191,7 +183,7 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
                     args.frames, args.warmup, args.clip_repeats, args.threads
                 )
                 continue
-            if is_runtime_file(name):
+            if names_runtime_file(name):
                 records.append(_runtime_record(name, args))
                 continue
             model, weights = resolve(name)

@@ -286,8 +286,8 @@ def train(
 ) -> TrainResult:
     """Run (or continue, with ``resume``) training as ``config`` says; returns where the
     checkpoints are. ``fresh``: a run already in the folder is deleted once the settings, the
-    the data have loaded (``train --force``). Raises TrainError / DatasetError / ModelLoadError
-    with what to change."""
+    data, the model and its optimizer are accepted (``train --force``). Raises TrainError /
+    DatasetError / ModelLoadError with what to change."""
     if config.model not in TRAINABLE_MODELS:
         raise TrainError(
             f"model {config.model!r} cannot be trained; choose {', '.join(TRAINABLE_MODELS)} "

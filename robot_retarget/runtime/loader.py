@@ -42,6 +42,13 @@ def shipped_runtimes(directory: Path | None = None) -> dict[str, Path]:
     return {p.stem: p for p in sorted(d.glob("*.npz"))} if d.is_dir() else {}
 
 
+def names_runtime_file(text: str) -> bool:
+    """``text`` names an exported numpy runtime file: by content, then by name (a torch
+    checkpoint named .npz is a zip of its own kind, and the runtime reader names what is wrong
+    with any other .npz: missing, cut off)."""
+    return is_numpy_archive(Path(text)) or (text.endswith(".npz") and not zipfile.is_zipfile(text))
+
+
 def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | LoadedModel:
     """The model to stream with: a numpy :class:`RuntimeModel` whenever one exists, else the
     torch model (which needs torch installed: ``pip install robot-retarget[train]``)."""
@@ -59,9 +66,7 @@ def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | L
         raise ModelLoadError(
             f"{kind}, not a model: give --model {MODEL_FORMS}", path=text, model=text
         )
-    # By content, then by name: a torch checkpoint named .npz is a zip of its own kind, and
-    # the runtime reader names what is wrong with any other .npz (missing, cut off).
-    if is_numpy_archive(Path(text)) or (text.endswith(".npz") and not zipfile.is_zipfile(text)):
+    if names_runtime_file(text):
         return load_runtime(text)
     try:
         from robot_retarget.nn.inference import load_model

@@ -85,9 +85,6 @@ class UdpDatagramSource(SocketSource):
     def address(self) -> tuple[str, int]:
         """The bound (host, port) once started (and after it stops: the summary names the port
         a port 0 was given); before, the one asked for."""
-        if self._sock is not None:
-            host, port = self._sock.getsockname()[:2]
-            self._bound = (str(host), int(port))
         return self._bound or (self.host, self.port)
 
     def describe(self) -> str:
@@ -106,8 +103,9 @@ class UdpDatagramSource(SocketSource):
             raise SourceError(
                 f"cannot bind UDP {self.host}:{self.port} ({exc}); {_bind_advice(exc)}"
             ) from exc
+        host, port = sock.getsockname()[:2]
+        self._bound = (str(host), int(port))  # kept: the port stays known once the socket closes
         self._start_receiver(sock, f"{self.SCHEME}-source")
-        _ = self.address  # remembered: the port stays known once the socket closes
 
     def _run(self) -> None:
         sock = self._sock

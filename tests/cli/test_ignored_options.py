@@ -128,8 +128,10 @@ def test_eval_robot_refuses_plots_it_cannot_write_before_any_clip(
 ) -> None:
     a_file = tmp_path / "plots.png"
     a_file.write_bytes(b"")
-    with pytest.raises(SystemExit, match="is a file; it names the folder"):
-        main(["eval-robot", "--plots", str(a_file), "--data", str(tmp_path / "none")])
+    assert main(["eval-robot", "--plots", str(a_file), "--data", str(tmp_path / "none")]) == 1
+    err = capsys.readouterr().err
+    assert f"--plots {a_file}" in err
+    assert "is a file, not a folder" in err
     with pytest.raises(SystemExit, match="--corrupt and --input 2d reports have no plots"):
         main(["eval-robot", "--plots", str(tmp_path), "--corrupt", "jitter"])
 

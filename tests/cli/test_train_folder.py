@@ -145,3 +145,12 @@ def test_an_unmakeable_folder_is_refused(tmp_path: Path) -> None:
     blocker.write_text("not a folder")
     with pytest.raises(train_cmd.TrainArgumentError, match="cannot create the run folder"):
         train_cmd._claim_run_folder(_args(blocker / "run"))
+
+
+def test_an_out_that_is_a_file_is_named_as_one(tmp_path: Path) -> None:
+    """It said 'cannot create the run folder ([Errno 17] File exists …)'."""
+    a_file = tmp_path / "c1.npz"
+    a_file.write_text("not a run")
+    with pytest.raises(train_cmd.TrainArgumentError, match="a file, not a folder"):
+        train_cmd._claim_run_folder(_args(a_file))
+    assert a_file.read_text() == "not a run"

@@ -314,3 +314,18 @@ def test_short_gap_holds_then_tracks_again_without_a_jump(
     assert Mode.SAFE not in modes
     assert result.safety.commands_clipped == 0
     assert check_limits(op3, _commands(result.log), loop.period_s, q_start=op3.init_pose).ok
+
+
+def test_a_source_on_port_0_reports_the_port_it_got(
+    step: RetargetStep, demo: HumanMotion, op3: RobotConfig
+) -> None:
+    """A source started by the loop (the API's way; the CLI binds it before) says the port the
+    system chose, so a sender knows where to send."""
+    src = UdpSource("127.0.0.1", 0, skeleton=demo.skeleton, nominal_fps=50.0)
+    lines: list[str] = []
+    loop = ControlLoop(step, src, SimBackend(op3), LoopSettings(duration_s=0.1),
+                       report=lines.append)  # fmt: skip
+    loop.run()
+    port = src.address[1]
+    assert port > 0
+    assert f"listening on udp://127.0.0.1:{port}" in lines

@@ -25,7 +25,7 @@ from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
 from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
 from robot_retarget.sources.keypoints.errors import KeypointFormatError, parse_json
-from robot_retarget.sources.keypoints.frames import Person, PersonFrames
+from robot_retarget.sources.keypoints.frames import MAX_GAP_FRAMES, Person, PersonFrames
 
 
 class CocoPersonError(ValueError):
@@ -123,16 +123,15 @@ def read_coco_jsonl(
                         frame=index,
                         line=line_no,
                     )
-                if at - index > _MAX_GAP_FRAMES:
+                if at - index > MAX_GAP_FRAMES:
                     raise KeypointFormatError(
                         f"its {first[1]} skips {at - index} frames after frame {index - 1}; "
-                        f"more than {_MAX_GAP_FRAMES} is no gap in one recording",
+                        f"more than {MAX_GAP_FRAMES} is no gap in one recording",
                         path=path,
                         frame=index,
                         line=line_no,
                     )
-                for _ in range(at - index):  # frames the estimator wrote no line for
-                    frames.add([])
+                frames.add_unseen(at - index)  # frames the estimator wrote no line for
                 index = at
             people = []
             for k, person in enumerate(people_of(obj)):
@@ -147,9 +146,6 @@ def read_coco_jsonl(
     if index == 0:
         raise KeypointFormatError("no frames (the file is empty)", path=path)
     return frames.sequence(float(rate if rate is not None else 30.0), source=str(path))
-
-
-_MAX_GAP_FRAMES = 100_000  # frames skipped between two lines, at most (an hour at 30 fps: ~1e5)
 
 
 def _number(value: Any) -> float | None:

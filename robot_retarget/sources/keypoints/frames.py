@@ -10,6 +10,9 @@ from robot_retarget.keypoints.sequence import KeypointSequence
 from robot_retarget.sources.keypoints.person_choice import PersonTracker
 
 Person = tuple[FloatArray, FloatArray, BoolArray]  # xy (17, 2), confidence (17,), valid (17,)
+# Frames a file may skip between two of its frames (an hour at 30 fps is about 1e5): more is no
+# gap in one recording, and would only fill memory with empty frames.
+MAX_GAP_FRAMES = 100_000
 
 
 class PersonFrames:
@@ -33,6 +36,12 @@ class PersonFrames:
         self._xy.append(np.where(valid[:, None], xy, np.nan))
         self._conf.append(conf)
         self._valid.append(valid.copy())
+
+    def add_unseen(self, count: int) -> None:
+        """``count`` frames the file has no entry for: nobody seen in them, so the frames after
+        keep their time."""
+        for _ in range(count):
+            self.add([])
 
     def sequence(
         self, fps: float, *, source: str, image_size: tuple[float, float] | None = None

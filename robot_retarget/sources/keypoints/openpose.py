@@ -22,7 +22,7 @@ from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.keypoints.coco17 import NUM_KEYPOINTS, Coco
 from robot_retarget.keypoints.sequence import DEFAULT_MIN_CONFIDENCE, KeypointSequence
 from robot_retarget.sources.keypoints.errors import KeypointFormatError, parse_json, read_text
-from robot_retarget.sources.keypoints.frames import PersonFrames
+from robot_retarget.sources.keypoints.frames import MAX_GAP_FRAMES, PersonFrames
 
 _BODY_25 = {
     "nose": 0, "right_shoulder": 2, "right_elbow": 3, "right_wrist": 4, "left_shoulder": 5,
@@ -53,9 +53,18 @@ def openpose_files(folder: Path) -> list[Path]:
     """The folder's ``*.json`` files in frame order: by the number in their names where every
     name has one (OpenPose's ``<video>_<frame>_keypoints.json``; unpadded numbers too), else
     in name order."""
+    return _numbered_files(folder)[0]
+
+
+def _numbered_files(folder: Path) -> tuple[list[Path], list[int] | None]:
+    """The folder's ``*.json`` files in frame order, and their frame numbers (None: in name
+    order, :func:`frame_numbers`)."""
     files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() == ".json")
     numbers = frame_numbers(files)
-    return files if numbers is None else [f for _, f in sorted(zip(numbers, files, strict=True))]
+    if numbers is None:
+        return files, None
+    ordered = sorted(zip(numbers, files, strict=True))
+    return [f for _, f in ordered], [n for n, _ in ordered]
 
 
 def frame_numbers(files: list[Path]) -> list[int] | None:
@@ -71,7 +80,6 @@ def frame_numbers(files: list[Path]) -> list[int] | None:
 
 
 _DIGITS = re.compile(r"\d+")
-_MAX_GAP_FRAMES = 100_000  # frames missing between two files, at most
 
 
 def is_openpose_folder(folder: Path) -> bool:
@@ -137,24 +145,22 @@ def read_openpose_folder(
 ) -> KeypointSequence:
     """Every frame file of ``folder``; one person followed (robot_retarget.sources.keypoints.
     person_choice). Raises KeypointFormatError naming the file and its frame index."""
-    files = openpose_files(folder)
+    files, numbers = _numbered_files(folder)
     if not files:
         raise KeypointFormatError("no .json frame files in this folder", path=folder)
-    numbers = frame_numbers(files)
     frames = PersonFrames()
     i = 0  # the next frame's position
     for k, path in enumerate(files):
         if numbers is not None and k > 0:
             gap = numbers[k] - numbers[k - 1] - 1
-            if gap > _MAX_GAP_FRAMES:
+            if gap > MAX_GAP_FRAMES:
                 raise KeypointFormatError(
                     f"its name's frame number {numbers[k]} comes {gap} frames after "
-                    f"{numbers[k - 1]}; more than {_MAX_GAP_FRAMES} is no gap in one recording",
+                    f"{numbers[k - 1]}; more than {MAX_GAP_FRAMES} is no gap in one recording",
                     path=path,
                     frame=i,
                 )
-            for _ in range(gap):  # a frame OpenPose wrote no file for: nobody seen then
-                frames.add([])
+            frames.add_unseen(gap)  # frames OpenPose wrote no file for
             i += gap
         doc = parse_json(read_text(path, i), path, i)
         frames.add(parse_openpose_people(doc, path, i, min_confidence))
