@@ -91,6 +91,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "stream --one-euro does",
     )
     parser.add_argument(
+        "--oracle-smoothing",
+        type=positive_float,
+        default=None,
+        metavar="MS",
+        help="with --corrupt: a bound, not a live option: smooth every sender's stream (clean "
+        "too) with a centred Gaussian of this σ in milliseconds before the live source, which "
+        "removes jitter with no lag as no live filter can",
+    )
+    parser.add_argument(
         "--raw-positions",
         action="store_true",
         help="with --corrupt: the live source solves position packets as sent, as stream "
@@ -167,6 +176,10 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(
             "eval-robot: --feet-as-solved is about the clip rows; the --corrupt runs play "
             "through the control loop, which sends the feet as solved already"
+        )
+    if args.oracle_smoothing is not None and args.corrupt is None:
+        raise SystemExit(
+            "eval-robot: --oracle-smoothing smooths the senders of --corrupt; add --corrupt"
         )
     if args.raw_positions and args.corrupt is None:
         raise SystemExit(
@@ -269,6 +282,8 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
     models = [model] if model == "copy-scaled" else [model, "copy-scaled"]
     rows = robustness(config, clips, models, kinds, max_frames=args.max_frames or 600,
                       input_filter=args.one_euro, clean_positions=not args.raw_positions,
+                      oracle_smoothing_s=None if args.oracle_smoothing is None
+                      else args.oracle_smoothing / 1000.0,
                       foot_lock_models=[model] if args.foot_lock else [],
                       progress=lambda n: print(f"  {n}", file=sys.stderr, flush=True))  # fmt: skip
     rows = [dataclasses.replace(r, model=_label(r.model, args)) if r.model == model else r
@@ -277,6 +292,10 @@ def _corrupted(config: Any, clips: Any, model: str, args: argparse.Namespace) ->
         print(json.dumps([r.__dict__ for r in rows], indent=2))
     else:
         print(markdown(rows))
+        if args.oracle_smoothing is not None:
+            print(f"Every sender's stream, clean too, smoothed with no lag (σ "
+                  f"{args.oracle_smoothing:g} ms, --oracle-smoothing): a bound no live filter "
+                  "reaches, not what stream runs.")  # fmt: skip
     return 0
 
 

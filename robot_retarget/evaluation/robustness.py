@@ -24,6 +24,7 @@ from robot_retarget.errors import InvalidMotionError
 from robot_retarget.evaluation.live_corruption import KINDS, corrupt_stream
 from robot_retarget.evaluation.live_replay import LiveScore, deviation_deg, score_live
 from robot_retarget.evaluation.robot.segments import RobotBodyModel
+from robot_retarget.evaluation.zero_lag_smoothing import zero_lag_smoothed
 from robot_retarget.motion.human_motion import load_motion
 from robot_retarget.pipeline.input_filter import OneEuroSettings
 from robot_retarget.pipeline.step import RetargetStep
@@ -51,12 +52,15 @@ def robustness(
     seed: int = 0,
     input_filter: OneEuroSettings | None = None,
     clean_positions: bool = True,
+    oracle_smoothing_s: float | None = None,
     foot_lock_models: Collection[str] = (),
     progress: Callable[[str], None] | None = None,
 ) -> list[RobustnessRow]:
     """Mean over ``clips`` of each model under ``clean`` and each kind (same noise per clip);
     ``input_filter``: the loop smooths its input (``stream --one-euro``);
     ``clean_positions=False``: the source solves positions as sent (``--raw-positions``);
+    ``oracle_smoothing_s``: every sender's stream (clean too) is first smoothed with no lag,
+    a centred Gaussian of that σ (``--oracle-smoothing``: a bound, not a live filter);
     ``foot_lock_models``: the models that run their foot lock (``--foot-lock``)."""
     body = RobotBodyModel(config)
     rows = []
@@ -71,6 +75,8 @@ def robustness(
             for kind in scores:  # clean first: the reference of the deviation
                 rng = np.random.default_rng(seed + k)
                 stream = corrupt_stream(motion, kind, rng)
+                if oracle_smoothing_s is not None:
+                    stream = zero_lag_smoothed(stream, oracle_smoothing_s)
                 try:
                     s = score_live(
                         step,
