@@ -106,6 +106,11 @@ class HardwareError(RetargetError):
     """Something went wrong talking to the robot."""
 
 
+class InvalidCommandError(HardwareError, ValueError):
+    """A joint command or state built from values none has (a wrong shape, a time that is not
+    a finite number): a HardwareError, and a ValueError as it always was."""
+
+
 class CommunicationError(HardwareError):
     """A bus transaction failed (timeout, corrupt packet); retryable."""
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from types import TracebackType
 
 from robot_retarget.array_types import FloatArray
@@ -48,6 +49,12 @@ class JointBackend(ABC):
         """The time between commands of the loop that drives this backend (``stream --rate``
         may differ from the config's rate); a backend that checks steps on its own uses it.
         The SafetyLayer in front tells it its own."""
+        return None
+
+    def set_command_clock(self, clock: Callable[[], float]) -> None:
+        """The clock (seconds) of the loop that drives this backend, where it is not the wall
+        clock (a loop on simulated time); a backend that checks steps against the time that
+        passed uses it. The SafetyLayer in front tells it its own."""
         return None
 
     def rounded(self, q: FloatArray) -> FloatArray:

@@ -85,6 +85,9 @@ class NotConnectedError(HardwareError):
 
 # Rounding slack for the joint-limit check: commands come from float64 math on the limits.
 _LIMIT_TOL_RAD = 1e-9
+# The backend's clock budget saves up this many control periods of each joint's velocity limit:
+# twice the SafetyLayer's (CLOCK_BUDGET_PERIODS), so behind one it never refuses a step.
+_BACKEND_BUDGET_PERIODS = 4.0
 _REST_TOL_RAD = 0.02
 """A joint found this far past a limit before torque on (1.1°: a few ticks of sag onto a
 stop) is held at the limit; farther is refused (the config or the robot is wrong)."""
@@ -218,6 +221,11 @@ class DynamixelBackend(JointBackend):
         self._faulted: HardwareError | None = None
         self._last_q: FloatArray | None = None
         self._command_period_s = 1.0 / config.control_rate_hz  # set_command_period
+        # Its own clock budget, as the SafetyLayer's but twice as deep: a backend used without
+        # one is refused commands that move faster than the time between them allows.
+        self._clock: Callable[[], float] = time.monotonic  # set_command_clock
+        self._budget = np.zeros(config.num_joints)
+        self._budget_t = 0.0
         self._old_handlers: dict[int, Any] = {}
         self.last_packets: dict[str, bytes] = {}  # bus name → last goal Sync Write sent
         self.parallel_buses = parallel_buses  # may be switched between ticks (bench loop)
@@ -265,6 +273,7 @@ class DynamixelBackend(JointBackend):
             self._close_buses()
             raise
         self._last_q = state.q.copy()
+        self._fill_budget()
         self._connected = True
         self._faulted = None
         self._install_signal_handlers()
@@ -469,6 +478,7 @@ class DynamixelBackend(JointBackend):
             wait_s = t0 + k * dt_s - time.monotonic()
             if wait_s > 0.0 and k < steps:
                 self._sleep(wait_s)
+        self._fill_budget()  # the ramp went at its own pace: the stream starts afresh
 
     # ----- streaming ---------------------------------------------------------------------------
     def _require_ready(self) -> None:
@@ -514,6 +524,21 @@ class DynamixelBackend(JointBackend):
         if not (math.isfinite(period_s) and period_s > 0.0):
             raise ValueError(f"period_s must be a positive number of seconds, got {period_s}")
         self._command_period_s = period_s
+        self._fill_budget()
+
+    def set_command_clock(self, clock: Callable[[], float]) -> None:
+        self._clock = clock
+        self._fill_budget()
+
+    def _budget_cap(self) -> FloatArray:
+        return np.asarray(
+            self.config.max_velocity * (_BACKEND_BUDGET_PERIODS * self._command_period_s),
+            dtype=np.float64,
+        )
+
+    def _fill_budget(self) -> None:
+        self._budget = self._budget_cap()
+        self._budget_t = self._clock()
 
     def _ticks_from_rad(self, q: FloatArray) -> IntArray:
         """ServoUnits.to_ticks for one finite (J,) vector, without its generic argument checks;
@@ -553,24 +578,43 @@ class DynamixelBackend(JointBackend):
     def _check_step(self, q: FloatArray) -> None:
         """Defence in depth, as _check_joint_limits: no command moves a joint further than its
         velocity limit allows in one control period (the SafetyLayer in front bounds every step
-        to that; a backend used on its own is refused a jump, not made to slew it)."""
+        to that; a backend used on its own is refused a jump, not made to slew it), nor further
+        than it allows in the time that really passed (the clock budget: commands sent faster
+        than real time, whatever their stamps)."""
         if self._last_q is None:
             return
+        step = np.abs(q - self._last_q)
+        tick = self.units.rad_per_tick
         bound = self.config.max_velocity * self._command_period_s
-        excess = np.abs(q - self._last_q) - bound - self.units.rad_per_tick
-        if np.all(excess <= 0.0):
-            return
-        bad = excess > 0.0
-        names = tuple(j.name for j, b in zip(self.config.joints, bad, strict=True) if b)
-        moves = np.round(np.abs(q - self._last_q)[bad], 4).tolist()
-        raise UnsafeCommandError(
-            f"command moves {', '.join(names)} by {moves} rad in one command, more than the "
-            "velocity limit allows in a command period "
-            f"({np.round(bound[bad], 4).tolist()} rad); nothing was sent, torque is off (a "
-            "SafetyLayer in front bounds every step: use one, and tell the backend the period "
-            "it runs at with set_command_period)",
-            joints=names,
-        )
+        excess = step - bound - tick
+        if np.any(excess > 0.0):
+            bad = excess > 0.0
+            names = tuple(j.name for j, b in zip(self.config.joints, bad, strict=True) if b)
+            raise UnsafeCommandError(
+                f"command moves {', '.join(names)} by {np.round(step[bad], 4).tolist()} rad in "
+                "one command, more than the velocity limit allows in a command period "
+                f"({np.round(bound[bad], 4).tolist()} rad); nothing was sent, torque is off (a "
+                "SafetyLayer in front bounds every step: use one, and tell the backend the "
+                "period it runs at with set_command_period)",
+                joints=names,
+            )
+        now = self._clock()
+        refill = self.config.max_velocity * max(now - self._budget_t, 0.0)
+        budget = np.minimum(self._budget + refill, self._budget_cap())
+        self._budget_t = now
+        if np.any(step > budget + tick):
+            bad = step > budget + tick
+            names = tuple(j.name for j, b in zip(self.config.joints, bad, strict=True) if b)
+            self._budget = budget
+            raise UnsafeCommandError(
+                f"commands come faster than real time: {', '.join(names)} would move "
+                f"{np.round(step[bad], 4).tolist()} rad, but at the velocity limit only "
+                f"{np.round(budget[bad], 4).tolist()} rad more fit in the time that passed; "
+                "nothing was sent, torque is off (send each command at the time it is stamped "
+                "with, or put a SafetyLayer in front, which bounds steps by the time that passed)",
+                joints=names,
+            )
+        self._budget = np.maximum(budget - step, 0.0)
 
     def send(self, cmd: JointCommand) -> JointCommand:
         self._require_ready()

@@ -5,7 +5,13 @@ NaN/inf or a wrong shape raise :class:`UnsafeCommandError` and nothing is sent. 
 step clipping are counted per joint and summarised by :meth:`SafetyLayer.report`.
 ``dt`` is the time since the previous command (from ``JointCommand.t_s``), never more than
 the config's control period, so jumping timestamps cannot loosen the step bound; a command
-whose time does not come after the previous one's is refused (UnsafeCommandError). For a
+whose time does not come after the previous one's is refused (UnsafeCommandError). Stamps are
+the caller's word, so the layer also keeps time itself (``clock``, the wall clock unless the
+caller drives a simulated or recorded timeline): each joint has a budget that fills at its
+velocity limit as the clock runs, up to :data:`CLOCK_BUDGET_PERIODS` periods' worth, and every
+step spends from it. Commands sent faster than their stamps say (a trajectory played in a
+loop without waiting) are bounded by the time that really passed; a loop at its rate never
+notices (a late tick and the early one after it fit in the budget). For a
 backend that rounds commands (a servo's position tick, ``JointBackend.position_quantum_rad``)
 the command returned is the one it will write, on its grid and within ``v_max · dt`` of what
 it wrote last (the nearest tick could be one too far).
@@ -13,6 +19,8 @@ it wrote last (the nearest tick could be one too far).
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,15 +48,35 @@ class ClipStats:
     commands_clipped: int = 0
     position_clips: int = 0
     step_clips: int = 0
+    # Joint-frames the clock budget held back further than the stamps' step bound would have
+    # (commands sent faster than real time, or a late loop catching up).
+    clock_clips: int = 0
     max_position_excess_rad: float = 0.0
     max_step_excess_rad: float = 0.0
     per_joint: dict[str, int] = field(default_factory=dict)
 
 
-class SafetyLayer(JointBackend):
-    """Wraps ``backend`` (any JointBackend for ``config``) and clamps every command."""
+CLOCK_BUDGET_PERIODS = 2.0
+"""How much of each joint's velocity limit the clock budget saves up: two control periods'
+worth, so a tick that ran late and the early one after it (the loop keeps its schedule) keep
+their full steps, while commands sent faster than real time get only the time that passed."""
 
-    def __init__(self, config: RobotConfig, backend: JointBackend) -> None:
+
+class SafetyLayer(JointBackend):
+    """Wraps ``backend`` (any JointBackend for ``config``) and clamps every command.
+
+    ``clock`` (seconds): what the step bound holds against besides the commands' stamps (see
+    the module docstring); the wall clock by default, the loop's own clock where it runs on
+    simulated time, None where no robot moves in real time (a recording of a conversion, a
+    benchmark of the pipeline's arithmetic). The backend is told it too, for its own check."""
+
+    def __init__(
+        self,
+        config: RobotConfig,
+        backend: JointBackend,
+        *,
+        clock: Callable[[], float] | None = time.monotonic,
+    ) -> None:
         self.config = config
         self.backend = backend
         self.lower = config.lower
@@ -61,6 +89,12 @@ class SafetyLayer(JointBackend):
         self._prev_t: float | None = None
         # A backend that rounds commands to ticks: what it last wrote, and its tick size.
         backend.set_command_period(self.period_s)  # its own step check, at this period
+        self._clock = clock
+        if clock is not None:
+            backend.set_command_clock(clock)
+        self._budget_cap = self.max_velocity * (CLOCK_BUDGET_PERIODS * self.period_s)
+        self._budget = self._budget_cap.copy()
+        self._budget_t = 0.0
         self._quantum = backend.position_quantum_rad
         self._prev_sent: FloatArray | None = None
         if self._quantum is not None:
@@ -83,9 +117,13 @@ class SafetyLayer(JointBackend):
         self.reset(state.q)
 
     def reset(self, q: FloatArray | None) -> None:
-        """Start the step bound from ``q`` (None: the next command only gets position clamping)."""
+        """Start the step bound from ``q``. None: from where the backend reports the robot when
+        the next command comes (read then, if it is connected; a backend that is not takes the
+        next command clamped to the limits only, as the start of a recording)."""
         self._prev_q = None if q is None else np.clip(q, self.lower, self.upper)
         self._prev_t = None
+        self._budget = self._budget_cap.copy()
+        self._budget_t = 0.0 if self._clock is None else self._clock()
         # Where the servos are, on their grid: the first command's ticks keep to the bound
         # from there too (the nearest tick could step half a tick past a ramp's step).
         self._prev_sent = (
@@ -121,8 +159,13 @@ class SafetyLayer(JointBackend):
             )
         # minimum(maximum(·)) is np.clip (inputs are finite here) without its wrapper's cost.
         lower, upper = self.lower, self.upper
+        if self._prev_q is None and self.backend.connected:
+            # Wrapped round a robot already connected, or reset(None): the first step is bounded
+            # from where the servos are, not only clamped to the limits.
+            self.reset(self.backend.read_state().q)
         prev = self._prev_q
         bound: FloatArray | None = None
+        stamp_bound: FloatArray | None = None
         if prev is None:
             q_safe = np.minimum(np.maximum(q, lower), upper)
         else:
@@ -135,7 +178,15 @@ class SafetyLayer(JointBackend):
                         "nothing was sent (stamp each JointCommand with an increasing t_s)"
                     )
                 dt = min(cmd.t_s - self._prev_t, self.period_s)
-            bound = self.max_velocity * dt
+            bound = stamp_bound = self.max_velocity * dt
+            if self._clock is not None:
+                now = self._clock()
+                elapsed = max(now - self._budget_t, 0.0)
+                self._budget = np.minimum(
+                    self._budget + self.max_velocity * elapsed, self._budget_cap
+                )
+                self._budget_t = now
+                bound = np.minimum(bound, self._budget)
             # prev lies inside the limits, so the limits and the step box intersect, and one
             # clamp to the intersection is the limit clamp followed by the step clamp.
             lo = np.maximum(prev - bound, lower)
@@ -146,19 +197,32 @@ class SafetyLayer(JointBackend):
         if not (q_safe == q).all():  # the bookkeeping only for a command that was changed
             q_pos = np.minimum(np.maximum(q, lower), upper)
             pos_clipped = q_pos != q
-            step_clipped = q_safe != q_pos
+            moved = q_safe != q_pos
+            if stamp_bound is not None and self._clock is not None and prev is not None:
+                # What the stamps alone allowed; the clock held a joint back where it differs.
+                q_stamp = np.minimum(
+                    np.maximum(q_pos, np.maximum(prev - stamp_bound, lower)),
+                    np.minimum(prev + stamp_bound, upper),
+                )
+                step_clipped = q_stamp != q_pos
+                by_clock = q_safe != q_stamp
+            else:
+                step_clipped, by_clock = moved, np.zeros_like(moved)
             s.commands_clipped += 1
             s.position_clips += int(pos_clipped.sum())
             s.step_clips += int(step_clipped.sum())
+            s.clock_clips += int(by_clock.sum())
             s.max_position_excess_rad = max(
                 s.max_position_excess_rad, float(np.max(np.abs(q - q_pos)))
             )
             s.max_step_excess_rad = max(
                 s.max_step_excess_rad, float(np.max(np.abs(q_pos - q_safe)))
             )
-            for n, c in zip(names, pos_clipped | step_clipped, strict=True):
+            for n, c in zip(names, pos_clipped | moved, strict=True):
                 if c:
                     s.per_joint[n] += 1
+        if prev is not None and self._clock is not None:
+            self._budget = np.maximum(self._budget - np.abs(q_safe - prev), 0.0)
         self._prev_q = q_safe
         self._prev_t = cmd.t_s
         if bound is not None and max_step is not None:
@@ -198,6 +262,12 @@ class SafetyLayer(JointBackend):
             f"({s.position_clips} joint limit clips, max excess {s.max_position_excess_rad:.4f} "
             f"rad; {s.step_clips} velocity clips, max excess {s.max_step_excess_rad:.4f} rad)"
         ]
+        if s.clock_clips:
+            lines.append(
+                f"{s.clock_clips} joint steps held to the time that really passed: commands came "
+                "faster than real time (a late loop catching up, or a caller that does not wait "
+                "for its stamps)"
+            )
         if worst:
             lines.append("most clipped: " + ", ".join(f"{n} ({c})" for c, n in worst))
         return "\n".join(lines)

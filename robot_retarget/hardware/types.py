@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from robot_retarget.array_types import FloatArray, IntArray
+from robot_retarget.errors import InvalidCommandError
 
 
 def _float_vector(name: str, value: object) -> FloatArray:
     arr = np.array(value, dtype=np.float64)  # a private copy: frozen means frozen
     if arr.ndim != 1:
-        raise ValueError(f"{name} must be a 1-D array (one value per joint), got shape {arr.shape}")
+        raise InvalidCommandError(
+            f"{name} must be a 1-D array (one value per joint), got shape {arr.shape}"
+        )
     arr.setflags(write=False)
     return arr
 
@@ -26,6 +30,20 @@ class JointCommand:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", _float_vector("JointCommand.q", self.q))
+        # A time of inf would leave every later command "not after the previous" (a robot
+        # stuck holding); NaN would compare false everywhere. Refused before anything sees it.
+        try:
+            t = float(self.t_s)
+        except (TypeError, ValueError):
+            raise InvalidCommandError(
+                f"JointCommand.t_s must be a number, got {self.t_s!r}"
+            ) from None
+        if not math.isfinite(t):
+            raise InvalidCommandError(
+                f"JointCommand.t_s must be a finite number of seconds, got {t}: stamp each "
+                "command with the time it is for"
+            )
+        object.__setattr__(self, "t_s", t)
 
 
 @dataclass(frozen=True)
@@ -53,4 +71,4 @@ class JointState:
         n = self.q.shape[0]
         for name in ("velocity", "load", "temperature", "hardware_error"):
             if getattr(self, name).shape != (n,):
-                raise ValueError(f"JointState.{name} must have shape ({n},)")
+                raise InvalidCommandError(f"JointState.{name} must have shape ({n},)")

@@ -137,7 +137,7 @@ def convert_motion(
     dt = 1.0 / rate
     # The file's frame period is its control period: the safety layer's step bound uses it.
     file_config = dataclasses.replace(config, control_rate_hz=rate)
-    safety = SafetyLayer(file_config, RecordingBackend(config))
+    safety = SafetyLayer(file_config, RecordingBackend(config), clock=None)  # a recording
     safety.connect()
     step.set_source(m.skeleton)
     if network is not None:

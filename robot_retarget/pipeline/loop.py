@@ -155,8 +155,12 @@ class ControlLoop:
         self.period_s = 1.0 / rate
         # The loop's period is the safety layer's control period (its step bound).
         loop_config = dataclasses.replace(self.config, control_rate_hz=rate)
+        # The safety layer keeps time on the loop's clock: simulated time where the loop runs
+        # on it, so its clock budget bounds steps by the time that passed there.
         self.safety = (
-            backend if isinstance(backend, SafetyLayer) else SafetyLayer(loop_config, backend)
+            backend
+            if isinstance(backend, SafetyLayer)
+            else SafetyLayer(loop_config, backend, clock=clock)
         )
         self.report = report or (lambda _line: None)
         self.record = record

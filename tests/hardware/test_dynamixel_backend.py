@@ -465,3 +465,57 @@ def test_a_dead_second_bus_stops_both_buses(
         _settle(poppy_sim)
         assert not any(s.torque_on for s in poppy_sim[poppy.buses[0].name].servos.values())
         assert not any(s.torque_on for s in poppy_sim[poppy.buses[1].name].servos.values())
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t = 10.0
+
+    def now(self) -> float:
+        return self.t
+
+
+def test_commands_faster_than_real_time_are_refused_without_a_safety_layer(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
+) -> None:
+    """Each command within a period's reach, stamped a period apart, but sent with no time
+    between them: the backend alone lets its clock budget (four periods' worth) go, then
+    refuses, sends nothing and switches torque off."""
+    sim = next(iter(op3_sim.values()))
+    clock = _Clock()
+    shoulder = op3.joint_index("r_sho_pitch")
+    reach = 0.9 * op3.max_velocity[shoulder] / op3.control_rate_hz
+    sign = 1.0 if op3.upper[shoulder] - op3.init_pose[shoulder] > 0.5 else -1.0
+    with DynamixelBackend(op3, make_buses(op3, op3_sim)) as backend:
+        backend.set_command_clock(clock.now)
+        q = op3.init_pose.copy()
+        backend.send(JointCommand(q, 0.0))  # torque on where the servos are, then a ramp
+        for k in range(1, 5):  # four periods' worth: taken
+            q[shoulder] += sign * reach
+            backend.send(JointCommand(q, k / op3.control_rate_hz))
+        q[shoulder] += sign * reach
+        with pytest.raises(UnsafeCommandError, match="faster than real time") as info:
+            backend.send(JointCommand(q, 5 / op3.control_rate_hz))
+        assert info.value.joints == ("r_sho_pitch",)
+        sim.settle()
+        assert not any(s.torque_on for s in sim.servos.values())
+
+
+def test_behind_a_safety_layer_the_clock_budget_never_refuses(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
+) -> None:
+    """The same commands through a SafetyLayer on the same clock: held to the time that
+    passed (a tenth of a period per command), never refused by the backend."""
+    clock = _Clock()
+    safe = SafetyLayer(op3, DynamixelBackend(op3, make_buses(op3, op3_sim)), clock=clock.now)
+    shoulder = op3.joint_index("r_sho_pitch")
+    sign = 1.0 if op3.upper[shoulder] - op3.init_pose[shoulder] > 0.5 else -1.0
+    with safe:
+        q = op3.init_pose.copy()
+        safe.send(JointCommand(q, 0.0))
+        for k in range(1, 60):
+            clock.t += 0.1 / op3.control_rate_hz
+            q[shoulder] += sign * op3.max_velocity[shoulder] / op3.control_rate_hz
+            safe.send(JointCommand(q, k / op3.control_rate_hz))
+        assert safe.stats.clock_clips > 0
+        assert safe.backend.connected

@@ -16,8 +16,10 @@ from robot_retarget.sim.backend import SimBackend
 
 
 def _layer(config: RobotConfig) -> tuple[SafetyLayer, SimBackend]:
+    """A layer that keeps to the commands' stamps alone (no clock: the stamp bound's tests;
+    the clock budget has its own below)."""
     inner = SimBackend(config, realtime=False)
-    safe = SafetyLayer(config, inner)
+    safe = SafetyLayer(config, inner, clock=None)
     safe.connect()
     return safe, inner
 
@@ -117,3 +119,117 @@ def test_in_range_commands_pass_unchanged(op3: RobotConfig) -> None:
     sent = safe.send(JointCommand(q, 0.01))
     np.testing.assert_array_equal(sent.q, np.clip(q, op3.lower, op3.upper))
     assert safe.stats.step_clips == 0
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t = 50.0
+
+    def now(self) -> float:
+        return self.t
+
+
+def test_commands_sent_faster_than_their_stamps_are_held_to_the_time_that_passed(
+    op3: RobotConfig,
+) -> None:
+    """A trajectory played in a loop that does not wait: stamps a period apart, a tenth of a
+    period between the calls. Each joint moves no further than its velocity limit allows in
+    the time that passed (plus the budget's two periods), however the commands are stamped."""
+    clock = _Clock()
+    inner = SimBackend(op3, realtime=False, clock=clock.now)
+    safe = SafetyLayer(op3, inner, clock=clock.now)
+    safe.connect()
+    period = 1.0 / op3.control_rate_hz
+    start = np.array(inner.read_state().q)
+    target = np.where(start - op3.lower > op3.upper - start, op3.lower, op3.upper)
+    t0 = clock.t
+    for k in range(1, 101):
+        clock.t += period / 10
+        safe.send(JointCommand(target, k * period))
+    moved = np.abs(np.array(inner.sent[-1].q) - start)
+    allowed = op3.max_velocity * (clock.t - t0 + 2 * period) + 1e-9
+    assert (moved <= allowed).all()
+    # Stamps alone would have let each joint go ten times as far, or all the way.
+    reach = np.minimum(np.abs(target - start), op3.max_velocity * 100 * period)
+    assert (moved < reach - 0.1).all()
+    assert safe.stats.clock_clips > 0
+    assert "faster than real time" in safe.report()
+
+
+def test_a_loop_at_its_rate_keeps_every_full_step(op3: RobotConfig) -> None:
+    """The loop's ticks come late by up to most of a period and the next one early (it keeps
+    its schedule): every command may still take a full period's step."""
+    clock = _Clock()
+    inner = SimBackend(op3, realtime=False, clock=clock.now)
+    safe = SafetyLayer(op3, inner, clock=clock.now)
+    safe.connect()
+    period = 1.0 / op3.control_rate_hz
+    rng = np.random.default_rng(4)
+    t0 = clock.t
+    q = np.array(inner.read_state().q)
+    direction = np.where(q - op3.lower > op3.upper - q, -1.0, 1.0)
+    for k in range(1, 30):
+        clock.t = t0 + k * period + rng.uniform(0.0, 0.9 * period)
+        want = np.clip(q + direction * op3.max_velocity * period, op3.lower, op3.upper)
+        q = np.array(safe.send(JointCommand(want, k * period * (1 + 1e-9))).q)
+        np.testing.assert_allclose(q, want, atol=1e-12)
+    assert safe.stats.clock_clips == 0
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.data())
+def test_no_window_of_time_sees_more_than_the_velocity_limit(
+    op3: RobotConfig, data: st.DataObject
+) -> None:
+    """Whatever the stamps and the time between calls: between any two commands a joint moves
+    at most v_max · (the time that passed + the budget's two periods), and each command at most
+    v_max · (its stamp step, at most a period)."""
+    clock = _Clock()
+    inner = SimBackend(op3, realtime=False, clock=clock.now)
+    safe = SafetyLayer(op3, inner, clock=clock.now)
+    safe.connect()
+    period = 1.0 / op3.control_rate_hz
+    n = op3.num_joints
+    times, qs = [clock.t], [np.array(inner.read_state().q)]
+    stamp = 0.0
+    for _ in range(data.draw(st.integers(1, 25))):
+        clock.t += data.draw(st.sampled_from([0.0, period / 20, period / 2, period, 3 * period]))
+        d_stamp = data.draw(st.sampled_from([period / 4, period, 10 * period]))
+        stamp += d_stamp
+        q = data.draw(arrays(np.float64, n, elements=st.floats(-4, 4)))
+        sent = np.array(safe.send(JointCommand(q, stamp)).q)
+        dt = period if len(qs) == 1 else min(d_stamp, period)  # the first: a period from connect
+        assert (np.abs(sent - qs[-1]) <= op3.max_velocity * dt + 1e-9).all()
+        times.append(clock.t)
+        qs.append(sent)
+    for i in range(len(qs)):
+        for j in range(i + 1, len(qs)):
+            allowed = op3.max_velocity * (times[j] - times[i] + 2 * period) + 1e-9
+            assert (np.abs(qs[j] - qs[i]) <= allowed).all()
+
+
+def test_wrapped_round_a_connected_robot_the_first_step_is_bounded(op3: RobotConfig) -> None:
+    """A layer put in front of a backend that is already connected (or reset to no pose) reads
+    where the robot is and bounds the first step from there: it is not only clamped to the
+    limits."""
+    inner = SimBackend(op3, realtime=False)
+    inner.connect()
+    here = np.array(inner.read_state().q)
+    safe = SafetyLayer(op3, inner, clock=None)
+    period = 1.0 / op3.control_rate_hz
+    sent = np.array(safe.send(JointCommand(op3.upper, 0.01)).q)
+    assert (np.abs(sent - here) <= op3.max_velocity * period + 1e-9).all()
+    safe.reset(None)
+    there = np.array(inner.read_state().q)  # where the servos got to, not the last goal
+    again = np.array(safe.send(JointCommand(op3.lower, 0.02)).q)
+    assert (np.abs(again - there) <= op3.max_velocity * period + 1e-9).all()
+
+
+def test_a_command_time_that_is_not_a_finite_number_is_refused(op3: RobotConfig) -> None:
+    from robot_retarget.errors import InvalidCommandError
+
+    for bad in (float("inf"), float("nan"), -float("inf")):
+        with pytest.raises(InvalidCommandError, match="finite number of seconds"):
+            JointCommand(op3.init_pose, bad)
+    with pytest.raises(ValueError, match="one value per joint"):  # still a ValueError too
+        JointCommand(np.zeros((2, op3.num_joints)), 0.0)

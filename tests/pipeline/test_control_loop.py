@@ -312,7 +312,10 @@ def test_short_gap_holds_then_tracks_again_without_a_jump(
     i_hold = modes.index(Mode.HOLD)
     assert modes[i_hold + 1] is Mode.TRACKING, modes
     assert Mode.SAFE not in modes
-    assert result.safety.commands_clipped == 0
+    # No jump: nothing the stamps' step bound had to clip. (This loop runs on the wall clock:
+    # on a loaded machine a late tick's catch-up may be held to the time that passed, counted
+    # apart as clock clips.)
+    assert (result.safety.position_clips, result.safety.step_clips) == (0, 0)
     assert check_limits(op3, _commands(result.log), loop.period_s, q_start=op3.init_pose).ok
 
 

@@ -273,7 +273,7 @@ def oracle_runner(config: RobotConfig) -> PipelineFn:
             m.global_quats(),
             level_feet=retargeter.settings.level_feet,
         )
-        safety = SafetyLayer(config, RecordingBackend(config))
+        safety = SafetyLayer(config, RecordingBackend(config), clock=None)  # a recording
         safety.connect()
         retargeter.reset(config.init_pose)
         q = np.empty((m.num_frames, config.num_joints))
