@@ -12,6 +12,8 @@ import importlib
 import json
 from typing import Any, Protocol, cast
 
+from robot_retarget.cli.missing_torch import INSTALL_HINT, MissingTorchError, is_missing_torch
+
 NAME = "bench"
 HELP = "Speed benchmarks (median and p99): solve, loop, model, pipeline, convert, stream."
 
@@ -43,7 +45,16 @@ def _target(name: str) -> BenchTarget:
 def configure(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="target", metavar="TARGET", required=True)
     for name in TARGETS:
-        target = _target(name)
+        try:
+            target = _target(name)
+        except ImportError as exc:
+            if not is_missing_torch(exc):
+                raise
+            # The other benchmarks still run; this one says what it needs when it is asked.
+            p = sub.add_parser(name, help=f"(needs torch, not installed: {INSTALL_HINT})")
+            p.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+            p.set_defaults(missing_torch=str(exc))
+            continue
         p = sub.add_parser(name, help=target.HELP, description=target.HELP)
         p.add_argument("--json", action="store_true", help="one JSON object per line")
         target.configure(p)
@@ -68,6 +79,8 @@ def format_table(records: list[BenchRecord]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "missing_torch", None) is not None:
+        raise MissingTorchError(f"robot-retarget bench {args.target}", args.missing_torch)
     records = _target(args.target).run(args)
     if args.json:
         for r in records:

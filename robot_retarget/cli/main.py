@@ -15,6 +15,7 @@ from typing import cast
 
 from robot_retarget import __version__
 from robot_retarget.cli.command import Command
+from robot_retarget.cli.missing_torch import MissingTorchError, is_missing_torch
 from robot_retarget.errors import RetargetError
 
 # (command name, module, one-line help). The help lives here too so --help needs no imports.
@@ -70,7 +71,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     selected = next((a for a in args_list if not a.startswith("-")), None)
     if selected not in names:
         selected = None
-    parser = build_parser(selected)
+    try:
+        parser = build_parser(selected)
+    except ImportError as exc:
+        if not is_missing_torch(exc):
+            raise
+        missing = MissingTorchError(f"robot-retarget {selected}", str(exc))
+        print(f"error: {missing}", file=sys.stderr)
+        return 1
     args = parser.parse_args(args_list)
     if args.command is None:
         parser.print_help()
@@ -78,6 +86,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     module = dict((n, m) for n, m, _ in COMMANDS)[args.command]
     try:
         return _load(module).run(args)
+    except ImportError as exc:
+        if not is_missing_torch(exc):
+            raise
+        print(f"error: {MissingTorchError(f'robot-retarget {args.command}', str(exc))}",
+              file=sys.stderr)  # fmt: skip
+        return 1
     except RetargetError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1

@@ -99,7 +99,7 @@ class RetargetStep:
         self.set_source(source_skeleton)
 
     def set_source(self, source_skeleton: Skeleton) -> None:
-        """A new performer: fresh network state for their rest offsets.
+        """A new performer: fresh network state for their rest offsets (and root track).
 
         Models with a numpy runtime (:mod:`robot_retarget.runtime`) run without torch; the
         others step through torch; the same numbers either way (tested)."""
@@ -110,6 +110,7 @@ class RetargetStep:
             frame_rate_hz=self.rate_hz,
             foot_lock=self.foot_lock,
         )
+        self._root_glitches = RootGlitches()
 
     def warm_up(self, frames: int = 3) -> None:
         """A few network steps on the rest pose (the first torch call is slow), then a reset
@@ -125,6 +126,7 @@ class RetargetStep:
         self.online.reset()
         self.retargeter.reset(q_start)
         self.stats = StepStats()
+        self._root_glitches = RootGlitches()
 
     def __call__(
         self,
@@ -144,6 +146,7 @@ class RetargetStep:
         if settle and q_prev is not None:
             raise ValueError("settle starts a sequence: it takes no q_prev")
         local_quats, root_pos = _checked_frame(local_quats, root_pos)
+        root_pos = self._root_glitches(root_pos, dt_s)
         quats, root = self.online.step(local_quats, root_pos)
         t1 = time.perf_counter()
         if not settle and self.live is not None and self.live.write(quats, dt_s, q_prev=q_prev):
@@ -180,6 +183,34 @@ def _trunk_frame(targets: FrameTargets) -> FloatArray:
     return targets.trunk_frame
 
 
+MAX_ROOT_SPEED_M_S = 30.0
+"""A root that moves faster than this between two frames is a tracker's glitch, not a
+performer (a sprinter peaks near 12 m/s): the jump is taken out of the root track."""
+_MIN_JUMP_M = 0.05  # shorter jumps are never glitches, however short the frame interval
+_UNIT_TOL = 1e-3  # |norm - 1| of a rotation quaternion beyond which it is no rotation
+
+
+class RootGlitches:
+    """The root as the network sees it: the performer's, less every jump faster than
+    :data:`MAX_ROOT_SPEED_M_S` (a tracker that loses and re-finds the root, a sender restarted
+    elsewhere). The network integrates root velocities, so one glitch would otherwise shift
+    the root it reports for good (a 50 m jump and back left 4 cm; one frame at 10^6 m, km)."""
+
+    def __init__(self) -> None:
+        self._last: FloatArray | None = None
+        self.shift = np.zeros(3)
+        self.count = 0
+
+    def __call__(self, root: FloatArray, dt_s: float) -> FloatArray:
+        last, self._last = self._last, root.copy()
+        if last is not None:
+            jump = float(np.linalg.norm(root - last))
+            if jump > _MIN_JUMP_M and jump > MAX_ROOT_SPEED_M_S * max(float(dt_s), 0.0):
+                self.shift -= root - last
+                self.count += 1
+        return np.asarray(root + self.shift, dtype=np.float64)
+
+
 def _checked_frame(
     local_quats: npt.ArrayLike, root_pos: npt.ArrayLike
 ) -> tuple[FloatArray, FloatArray]:
@@ -198,5 +229,13 @@ def _checked_frame(
         raise InvalidMotionError(
             f"{what} holds NaN or infinite values; the frame is refused (nothing changed: the "
             "next good frame goes on from the last)"
+        )
+    off = np.abs(np.linalg.norm(quats, axis=1) - 1.0)
+    if (off > _UNIT_TOL).any():
+        j = int(np.argmax(off))
+        raise InvalidMotionError(
+            f"local_quats row {j} has norm {np.linalg.norm(quats[j]):.6g}: rotations are unit "
+            "quaternions w-x-y-z; the frame is refused (nothing changed: the next good frame "
+            "goes on from the last)"
         )
     return quats, root

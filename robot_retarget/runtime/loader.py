@@ -42,6 +42,11 @@ def shipped_runtimes(directory: Path | None = None) -> dict[str, Path]:
     return {p.stem: p for p in sorted(d.glob("*.npz"))} if d.is_dir() else {}
 
 
+def _shipped_checkpoint_names() -> set[str]:
+    """The torch checkpoints shipped with the package (they load only with torch)."""
+    return {p.stem for p in CHECKPOINT_DIR.glob("*.pt")} if CHECKPOINT_DIR.is_dir() else set()
+
+
 def names_runtime_file(text: str) -> bool:
     """``text`` names an exported numpy runtime file: by content, then by name (a torch
     checkpoint named .npz is a zip of its own kind, and the runtime reader names what is wrong
@@ -71,6 +76,17 @@ def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | L
     try:
         from robot_retarget.nn.inference import load_model
     except ImportError as exc:
+        where = Path(text).expanduser()
+        if not where.exists() and text not in _shipped_checkpoint_names():
+            # Torch would not find it either: say so, not that torch is missing.
+            names = sorted(
+                n for n in {*BUILTIN_RUNTIMES, *shipped} if not n.startswith("agnostic2d")
+            )
+            raise ModelLoadError(
+                f"no model {text!r}: not a model name, nor a file or folder; available names "
+                f"here: {', '.join(names)} (or pass a runtime .npz written by export)",
+                model=text,
+            ) from None
         raise ModelLoadError(
             f"model {text!r} has no numpy runtime file and torch is not installed ({exc}); "
             "install torch (pip install robot-retarget[train]) or export the checkpoint with "

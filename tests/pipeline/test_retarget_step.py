@@ -124,3 +124,59 @@ def test_a_nan_frame_is_refused_and_leaves_the_step_as_it_was() -> None:
     a, b = steps[0](rest, root, 0.008), steps[1](rest, root, 0.008)
     np.testing.assert_array_equal(a.q, b.q)
     np.testing.assert_array_equal(a.root_pos, b.root_pos)
+
+
+def test_frames_that_are_no_pose_are_refused_by_name() -> None:
+    """A zero or scaled quaternion had gone on to a NaN deep in the solve (a zero) or been
+    taken as it was (norm 3)."""
+    from robot_retarget.errors import InvalidMotionError
+    from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.skeleton.canonical import default_canonical_skeleton
+
+    config = load_robot_config("op3")
+    rest = np.zeros((22, 4))
+    rest[:, 0] = 1.0
+    root = np.array([0.0, 0.9, 0.0])
+    steps = [RetargetStep(config, "default", default_canonical_skeleton()) for _ in range(2)]
+    for step in steps:
+        step(rest, root, 0.008, settle=True)
+    for scale in (0.0, 3.0, 1e-12):
+        bad = rest.copy()
+        bad[8] *= scale
+        with pytest.raises(InvalidMotionError, match="row 8 has norm"):
+            steps[0](bad, root, 0.008)
+    a, b = steps[0](rest, root, 0.008), steps[1](rest, root, 0.008)
+    np.testing.assert_array_equal(a.q, b.q)
+    np.testing.assert_array_equal(a.root_pos, b.root_pos)
+
+
+def test_a_root_that_jumps_faster_than_any_performer_is_taken_out_of_the_root_track(
+    demo: HumanMotion,
+) -> None:
+    """A tracker's glitch (50 m away for one frame, and back; or a jump that stays): the
+    network integrates root velocities, so the reported root had kept an offset after the
+    glitch. Now the root track it sees has no jump: it stands still for the frame of the jump
+    (a frame's motion lost, under 3 mm here) and goes on as the clean run's, whether the
+    glitch comes back or stays."""
+    from robot_retarget.robot.loader import load_robot_config
+
+    config = load_robot_config("op3")
+    clip = demo.frames(0, 60)
+    dt = 1.0 / clip.fps
+    runs = {}
+    for kind in ("clean", "glitch", "far", "stays"):
+        step = RetargetStep(config, "default", clip.skeleton)
+        roots = []
+        for t in range(clip.num_frames):
+            root = clip.root_pos[t].copy()
+            if kind == "glitch" and t == 30:
+                root[0] += 50.0
+            if kind == "far" and t == 30:
+                root[0] += 1e6
+            if kind == "stays" and t >= 30:
+                root[2] += 3.0
+            roots.append(step(clip.local_quats[t], root, dt, settle=t == 0).root_pos)
+        runs[kind] = np.array(roots)
+    for kind in ("glitch", "far", "stays"):  # without it: 9.3 m off after the 50 m glitch
+        off = np.linalg.norm(runs[kind] - runs["clean"], axis=1)
+        assert off.max() < 0.003, (kind, off.max())
