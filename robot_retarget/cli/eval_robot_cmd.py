@@ -200,9 +200,9 @@ def run(args: argparse.Namespace) -> int:
     )
     from robot_retarget.evaluation.robot.segments import RobotBodyModel
     from robot_retarget.nn.dataset import DEFAULT_VALIDATION_SUBJECTS
-    from robot_retarget.optimize.settings import RetargetSettings
     from robot_retarget.pipeline.defaults import default_model_name
     from robot_retarget.robot.loader import load_robot_config
+    from robot_retarget.robot.retarget_settings import RetargetSettings
     from robot_retarget.runtime.loader import check_foot_lock, load_runtime_model
 
     try:

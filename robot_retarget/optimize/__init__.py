@@ -55,13 +55,13 @@ from __future__ import annotations
 
 from robot_retarget.optimize.result import SolveResult, SolveStatus
 from robot_retarget.optimize.retargeter import ClipTiming, Retargeter
-from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.targets import (
     ClipTargets,
     FrameTargets,
     targets_from_globals,
     targets_from_rotations,
 )
+from robot_retarget.robot.retarget_settings import RetargetSettings
 
 __all__ = [
     "ClipTargets",

@@ -161,7 +161,7 @@ class RobotProblem:
         by ``objective`` (default: the Retargeter's terms with default settings)."""
         if objective is None:
             from robot_retarget.optimize.objective import retarget_objective
-            from robot_retarget.optimize.settings import RetargetSettings
+            from robot_retarget.robot.retarget_settings import RetargetSettings
 
             objective = retarget_objective(self, RetargetSettings())
         j = self.num_joints

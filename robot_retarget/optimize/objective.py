@@ -19,7 +19,6 @@ import numpy as np
 from robot_retarget.array_types import FloatArray
 from robot_retarget.optimize.formulation import FrameQuantities, RobotProblem
 from robot_retarget.optimize.parameter_layout import Parameter, ParameterLayout
-from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.targets import FrameTargets
 from robot_retarget.optimize.terms import (
     AccelerationTerm,
@@ -32,6 +31,7 @@ from robot_retarget.optimize.terms import (
     VelocityTerm,
 )
 from robot_retarget.optimize.terms.keypoint import KeypointTerm, keypoint_chains
+from robot_retarget.robot.retarget_settings import RetargetSettings
 
 _Q_PREV = "history.q_prev"
 _Q_PREV2 = "history.q_prev2"

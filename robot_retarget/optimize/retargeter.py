@@ -35,7 +35,6 @@ from robot_retarget.optimize.limits import project_sequence, velocity_box
 from robot_retarget.optimize.objective import ParameterWriter, retarget_objective
 from robot_retarget.optimize.online_check import OnlineCheck
 from robot_retarget.optimize.result import SolveResult, SolveStatus
-from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.solver import (
     STEP_TOL_STATUS,
     STOPPED_SHORT,
@@ -51,6 +50,7 @@ from robot_retarget.optimize.targets import (
     trunk_bones,
 )
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.retarget_settings import RetargetSettings
 from robot_retarget.robot.servo_models import servo_model
 
 _CONSTRAINT_TOL = 1e-6  # twist (rad) / ground (m) violation still called "satisfied"

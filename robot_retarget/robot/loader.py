@@ -40,6 +40,7 @@ from robot_retarget.robot.config import (
     RobotConfig,
     Vec3,
 )
+from robot_retarget.robot.retarget_settings import RetargetSettings
 from robot_retarget.robot.servo_models import (
     BAUD_RATES_TEXT,
     RPM_TO_RAD_S,
@@ -177,6 +178,11 @@ def parse_robot_config(text: str, *, path: str | os.PathLike[str] | None = None)
     config = _Builder(where).robot(data)
     check_required_bones(config)
     check_bone_geometry(config)
+    # The optimizer's section too, as it is read (a typo there had loaded and failed later, in
+    # convert or stream; the API's load_robot took it).
+    RetargetSettings.from_mapping(
+        config.retarget, bone_names=tuple(b.canonical for b in config.bones), path=where
+    )
     return config
 
 

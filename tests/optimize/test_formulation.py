@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 from robot_retarget.geometry import quaternion as quat
 from robot_retarget.optimize.formulation import RobotProblem, twist_expr
 from robot_retarget.optimize.objective import retarget_objective
-from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.retarget_settings import RetargetSettings
 
 vec3 = st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3).filter(
     lambda v: float(np.linalg.norm(v)) > 0.1

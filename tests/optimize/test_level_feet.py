@@ -24,11 +24,11 @@ from robot_retarget.optimize.level_feet import (
     level_twists_sx,
     rest_axes_of,
 )
-from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.targets import FrameTargetBuilder, targets_from_rotations
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.retarget_settings import RetargetSettings
 from robot_retarget.skeleton.canonical import Joint, default_canonical_skeleton
 
 UP = np.array([0.0, 1.0, 0.0])

@@ -100,9 +100,10 @@ def _frame_solver(r: Retargeter) -> LiveFrameSolver:
 
 
 def test_a_degenerate_frame_takes_the_numpy_path(op3: RobotConfig) -> None:
-    """A root "rotation" that flattens every vector onto one axis (a non-unit quaternion: no
-    check upstream promises unit ones) leaves no trunk frame: the graph's guard sends the
-    frame to the numpy targets and their fallbacks, and the command is the numpy path's."""
+    """A root "rotation" that flattens every vector onto one axis (a non-unit quaternion: the
+    step refuses one as input, but nothing promises the network's output is unit) leaves no
+    trunk frame: the graph's guard sends the frame to the numpy targets and their fallbacks,
+    and the command is the numpy path's."""
     motion = demo_motion(fps=op3.control_rate_hz).frames(0, 3)
     fast, ref = (
         RetargetStep(op3, "copy", motion.skeleton, frame_program=program)
@@ -112,12 +113,17 @@ def test_a_degenerate_frame_takes_the_numpy_path(op3: RobotConfig) -> None:
     flat[0] = (0.0, np.sqrt(0.5), 0.0, 0.0)  # maps (x, y, z) to (x, 0, 0)
     assert fast.live is not None
     assert not fast.live.write(flat, 0.008)
+    network_gives_flat = [False]
     for s in (fast, ref):
         s.reset()
-        s.online.step = lambda q, root: (q, root)  # type: ignore[method-assign]
-    for quats in (motion.local_quats[0], flat, motion.local_quats[1]):
-        a = fast(quats, motion.root_pos[0], 0.008)
-        b = ref(quats, motion.root_pos[0], 0.008)
+        s.online.step = lambda q, root: (  # type: ignore[method-assign]
+            flat if network_gives_flat[0] else q,
+            root,
+        )
+    for k, degenerate in enumerate((False, True, False)):
+        network_gives_flat[0] = degenerate
+        a = fast(motion.local_quats[k], motion.root_pos[0], 0.008)
+        b = ref(motion.local_quats[k], motion.root_pos[0], 0.008)
         # Bit for bit: a degenerate frame's write leaves the start point (which the numpy
         # path moves on from) as it was.
         np.testing.assert_array_equal(a.q, b.q)

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from robot_retarget.errors import ConfigError
-from robot_retarget.optimize.settings import RetargetSettings
+from robot_retarget.robot.retarget_settings import RetargetSettings
 
 BONES = ("LeftArm", "LeftForeArm")
 

@@ -11,9 +11,9 @@ import pytest
 from robot_retarget.casadi_jit import CACHE_ENV, default_cache_dir, find_compiler
 from robot_retarget.optimize.formulation import RobotProblem
 from robot_retarget.optimize.objective import retarget_objective
-from robot_retarget.optimize.settings import RetargetSettings
 from robot_retarget.optimize.solver import BufferedSolver, SolverSpec, build_solver, cache_key
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.retarget_settings import RetargetSettings
 
 
 def test_cache_key_depends_on_expressions_and_options(twist_arm: RobotConfig) -> None:

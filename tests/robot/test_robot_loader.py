@@ -109,6 +109,13 @@ MISTAKES = [
      "start: l_hip_center, end: l_toe}", "bones[8].start", "a limb's bones join end to start"),
     ("an option written as a switch", "retarget:\n", "retarget:\n  level_feet: true\n",
      "retarget.level_feet", "got True: write 1 instead"),
+    # The optimizer's section is checked as the file is read (load_robot had taken these).
+    ("a misspelt optimizer option", "retarget:\n", "retarget:\n  w_orientaton: 0.01\n",
+     "retarget.w_orientaton", "did you mean 'w_orientation'?"),
+    ("a negative weight", "retarget:\n", "retarget:\n  w_direction: -1\n",
+     "retarget.w_direction", "must be finite and ≥ 0"),
+    ("an iteration count that is no whole number", "retarget:\n", "retarget:\n  max_iter: 2.5\n",
+     "retarget.max_iter", "must be a whole number"),
 ]  # fmt: skip
 
 
@@ -231,7 +238,7 @@ def test_numbers_written_as_yaml_1_2_does() -> None:
     optimizer option suggests the nearest known one."""
     import yaml
 
-    from robot_retarget.optimize.settings import RetargetSettings
+    from robot_retarget.robot.retarget_settings import RetargetSettings
 
     doc = yaml.load("a: 1e-8\nb: -4E+2\nc: 12\nd: e5\n", Loader=loader._ConfigLoader)
     assert doc == {"a": 1e-8, "b": -400.0, "c": 12, "d": "e5"}

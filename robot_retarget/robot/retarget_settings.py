@@ -7,7 +7,7 @@ are written ``<option>.<CanonicalBone>``, e.g. ``twist_limit_deg.LeftForeArm: 12
 replace the option's value for that bone (``twist_limit_deg``, ``w_direction``,
 ``w_orientation``).
 
-Cost terms (all summed per frame; one :mod:`.terms` module each):
+Cost terms (all summed per frame; one :mod:`robot_retarget.optimize.terms` module each):
 
 - ``w_direction``   · Σ_bones |d(q) − d*|²   unit bone directions in the robot root frame;
   ``direction_eps`` > 0: pseudo-Huber √(c² + eps²) − eps of each chord c instead of c².
@@ -25,9 +25,9 @@ Cost terms (all summed per frame; one :mod:`.terms` module each):
 - ``w_init``        · |q_t − q_init|²                              rad²
 
 Targets: ``level_feet`` (0 … 1, default 1) is the share of each foot's roll about its own long
-axis left out of the targets (:mod:`.level_feet`): 1 keeps the soles level, 0 copies the
-performer's foot roll, which on mocap rigs is mostly the rig's (OP3 stood on the outer edges
-of its soles).
+axis left out of the targets (:mod:`robot_retarget.optimize.level_feet`): 1 keeps the soles
+level, 0 copies the performer's foot roll, which on mocap rigs is mostly the rig's (OP3 stood
+on the outer edges of its soles).
 
 Solver options: ``max_iter`` (online SQP iterations), ``step_tol_ticks`` (the online SQP stops
 once a step moves no joint by more than this share of the robot's finest servo tick),
