@@ -173,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_retarget.errors import RetargetError
     from robot_retarget.pipeline.backends import open_backend
     from robot_retarget.pipeline.defaults import default_model_name
-    from robot_retarget.pipeline.loop import ControlLoop, LoopSettings
+    from robot_retarget.pipeline.loop import ControlLoop, LoopSettings, Mode
     from robot_retarget.pipeline.step import RetargetStep
     from robot_retarget.robot.loader import load_robot_config
     from robot_retarget.runtime.loader import load_runtime_model
@@ -325,6 +325,16 @@ def run(args: argparse.Namespace) -> int:
         if args.record is not None:
             print(f"nothing recorded: {args.record} not written", file=sys.stderr)
         return 1
+    if not result.interrupted and not any(m is Mode.TRACKING for _, m in result.transitions):
+        # Safe, but not what was asked for: say so rather than end as if the clip had played.
+        print(
+            "warning: the robot never tracked the motion: the stream ended (input over, or "
+            "--duration) while the start ramp was still bringing the robot to it "
+            f"({settings.ramp_speed_fraction:.0%} of the velocity limits from where the servos "
+            "stood). Give a longer clip or --loop, or start the robot nearer the motion's "
+            "first pose",
+            file=sys.stderr,
+        )
     if args.record is not None:
         _save_record(args.record, result.log, config.joint_names, rate, force=args.force)
     return 0

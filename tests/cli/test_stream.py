@@ -464,3 +464,22 @@ def test_a_source_that_cannot_bind_is_said_before_the_robot_connects(
         with pytest.raises(SourceError, match="is another stream running"):
             stream_cmd.run(_args("--source", f"udp://127.0.0.1:{port}", "--duration", "0.3"))
     assert "streaming" not in capsys.readouterr().err
+
+
+def test_a_stream_that_ends_before_the_robot_reached_the_motion_says_so(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A replay that ends during the start ramp: safe, but the motion was never tracked, and
+    the run had ended as if it had played ("modes: ramp-in, stopping", no word)."""
+    args = _args("--robot", "op3", "--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}",
+                 "--backend", "sim", "--duration", "0.3")  # fmt: skip
+    assert stream_cmd.run(args) == 0
+    out = capsys.readouterr()
+    assert "tracking" not in out.out.split("modes:")[1]
+    assert "never tracked the motion" in out.err
+    args = _args("--robot", "op3", "--source", f"replay:{FIXTURES / 'tiny_walk.bvh'}",
+                 "--backend", "sim", "--duration", "3.5", "--loop")  # fmt: skip
+    assert stream_cmd.run(args) == 0
+    out = capsys.readouterr()
+    assert "tracking" in out.out.split("modes:")[1]
+    assert "never tracked" not in out.err
