@@ -23,6 +23,7 @@ this module:
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 import shlex
@@ -134,6 +135,9 @@ def _check_folder(folder: Path, option: str, create: bool, probed: set[Path]) ->
     problem = _probe_writable(target)
     if problem is not None:
         reason = problem.strerror or str(problem)
+        if problem.errno == errno.ENOENT and target.is_dir():
+            # It exists, yet creating a file in it says "no such file": a virtual file system.
+            reason = "no file can be created in it: a virtual file system such as /proc or /sys"
         where = "" if target == folder else f" (its nearest existing parent {target})"
         raise OutputPathError(
             f"the folder{where} is not writable ({reason}); choose a writable folder",

@@ -29,15 +29,18 @@ class PortNotFoundError(HardwareError):
     """A serial port given on the command line does not exist. ``port`` is the path,
     ``available`` the ports the OS lists (may be empty)."""
 
-    def __init__(self, port: str, available: Sequence[str] = ()) -> None:
+    def __init__(
+        self, port: str, available: Sequence[str] = (), *, problem: str = "does not exist"
+    ) -> None:
         self.port = port
         self.available = tuple(available)
+        self.problem = problem
         hint = (
             f"ports found: {', '.join(self.available)}"
             if self.available
             else "no serial ports found: is the adapter plugged in?"
         )
-        super().__init__(f"serial port {port} does not exist ({hint}); check --port")
+        super().__init__(f"serial port {port} {problem} ({hint}); check --port")
 
 
 def add_port_argument(parser: argparse.ArgumentParser, omitted: str = "") -> None:
@@ -59,9 +62,21 @@ def _is_device_path(path: str) -> bool:
     return "://" not in path and os.name != "nt"
 
 
-def check_ports_exist(items: Sequence[str], available: Sequence[str] = ()) -> None:
-    """Raise :class:`PortNotFoundError` for the first ``[BUS=]PATH`` whose PATH is missing."""
+def check_ports_exist(items: Sequence[str], available: Sequence[str] | None = None) -> None:
+    """Raise :class:`PortNotFoundError` for the first ``[BUS=]PATH`` whose PATH is missing or
+    a folder; ``available``: the ports the OS lists (listed here when not given)."""
     for item in items:
         _, path = split_port(item)
-        if _is_device_path(path) and not os.path.exists(path):
-            raise PortNotFoundError(path, available)
+        if not _is_device_path(path):
+            continue
+        problem = (
+            "does not exist" if not os.path.exists(path)
+            else "is a folder, not a serial port" if os.path.isdir(path)
+            else None
+        )  # fmt: skip
+        if problem is not None:
+            if available is None:
+                from robot_retarget.hardware.doctor import serial_ports
+
+                available = [info.device for info in serial_ports()]
+            raise PortNotFoundError(path, available, problem=problem)

@@ -197,3 +197,11 @@ def test_fallback_folders_are_distinct(tmp_path: Path, monkeypatch: pytest.Monke
     folders = fallback_folders(tmp_path / "x.npz")
     assert folders[0] == tmp_path
     assert len(folders) == len({f.resolve() for f in folders})
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+def test_a_virtual_file_system_is_named_as_such() -> None:
+    """/proc exists, yet creating a file in it fails with "No such file or directory": the
+    message had said just that of a folder that is there."""
+    with pytest.raises(OutputPathError, match="virtual file system"):
+        check_outputs([Output("--out", Path("/proc/x.npz"))])

@@ -39,4 +39,18 @@ def test_missing_ports_are_refused(tmp_path: Path) -> None:
     assert e.value.port == str(tmp_path / "gone")
     assert e.value.available == ("/dev/ttyUSB0",)
     with pytest.raises(PortNotFoundError, match="is the adapter plugged in"):
-        check_ports_exist(["/dev/nonexistent"])
+        check_ports_exist(["/dev/nonexistent"], [])  # the OS lists none
+
+
+def test_a_folder_is_named_as_a_folder_and_the_ports_found_are_listed(tmp_path: Path) -> None:
+    """A folder given as --port was said not to exist; and stream (which passes no list of
+    ports) said none was found where doctor listed the ports the OS has."""
+    with pytest.raises(PortNotFoundError, match="is a folder, not a serial port") as info:
+        check_ports_exist([str(tmp_path)], ["/dev/ttyS0"])
+    assert info.value.problem == "is a folder, not a serial port"
+    from robot_retarget.hardware.doctor import serial_ports
+
+    listed = [p.device for p in serial_ports()]
+    with pytest.raises(PortNotFoundError) as missing:
+        check_ports_exist([str(tmp_path / "ttyUSB9")])
+    assert list(missing.value.available) == listed
