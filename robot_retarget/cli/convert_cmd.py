@@ -355,7 +355,9 @@ def run(args: argparse.Namespace) -> int:
         if report.error is not None:
             print(f"error: {clip_error(report)}", file=sys.stderr)
         reports.append(report)
-    print(format_summary(reports, time.perf_counter() - t_all))
+    summary = format_summary(reports, time.perf_counter() - t_all)
+    if summary:
+        print(summary)
     return 1 if any(r.error for r in reports) else 0
 
 
@@ -426,7 +428,9 @@ def _run_batch(args: argparse.Namespace) -> int:
         reports = run_batch(plan, manifest, pool, report)
     order = {job.clip: k for k, job in enumerate(plan.todo)}
     reports.sort(key=lambda r: order[r.clip])
-    print(format_summary(reports, time.perf_counter() - t_all))
+    summary = format_summary(reports, time.perf_counter() - t_all)
+    if summary:
+        print(summary)
     return 1 if any(r.error for r in reports) else 0
 
 
@@ -451,6 +455,8 @@ def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
     frames = sum(r.frames for r in ok)
     solved = sum(r.solved_frames for r in ok)  # the rate leaves out --lead-in's frames
     compute = sum(r.wall_s for r in ok)
+    if len(reports) == 1 and reports[0].error is not None:
+        return ""  # one clip, failed: its error line above says it all
     lines = ["", "summary:"]
     for r in reports:
         if r.error is not None:
