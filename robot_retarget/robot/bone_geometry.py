@@ -4,9 +4,10 @@ The loader checks each key on its own; these mistakes only show when the bones a
 
 - **a bone that runs backwards** (its ``start`` and ``end`` swapped): a limb's bones join end
   to start (the forearm starts where the upper arm ends), so a bone whose start lies where its
-  parent bone starts, or whose end lies where its parent ends, is reversed. Left in, every solve
-  meets a bone 180° from its target, where the twist's derivative is NaN, and the robot stands
-  still (each frame holds the previous command);
+  parent bone starts, or whose end lies where its parent ends, is reversed (or, where the
+  parent runs outward from the root link as limbs do, names its parent's start as its own).
+  Left in, every solve meets a bone 180° from its target, where the twist's derivative is NaN,
+  and the robot stands still (each frame holds the previous command);
 - **sides**: a Left bone must lie on the robot's left, a Right bone on its right, left being
   ``up_axis × forward_axis``. All of them on the wrong side is a ``forward_axis`` (or
   ``up_axis``) pointing the wrong way; one is a bone mapped onto the other side's links.
@@ -55,6 +56,16 @@ def _check_joins(config: RobotConfig, at: dict[str, np.ndarray]) -> None:
         if gap <= tol:
             continue
         if float(np.linalg.norm(start - p_start)) <= tol:
+            # Either the parent runs backwards or this bone's start names the parent's start.
+            # Limbs run outward: a parent whose start lies nearer the root link than its end
+            # (positions are in the root link's frame) runs the right way round.
+            if float(np.linalg.norm(p_start)) < float(np.linalg.norm(p_end)):
+                raise ConfigError(
+                    f"bone {_label(bone)} starts where {_label(parent)} starts, not where it "
+                    f"ends: a limb's bones join end to start (start: {parent.end_frame}?)",
+                    path=config.source_path,
+                    key=f"bones[{i}].start",
+                )
             raise _backwards(config, p, f"{bone.canonical} starts at its start, not at its end")
         if float(np.linalg.norm(end - p_end)) <= tol:
             raise _backwards(config, i, f"its end, not its start, is where {parent.canonical} ends")
