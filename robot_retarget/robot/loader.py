@@ -498,8 +498,9 @@ class _Builder:
         if buses[bus_name].protocol not in model.protocols:
             raise self.error(
                 f"{key}.servo.model",
-                f"{model_name} does not speak Protocol {buses[bus_name].protocol} "
-                f"(bus {bus_name!r})",
+                f"this tool drives {model_name} over Protocol "
+                f"{' or '.join(str(p) for p in model.protocols)} only (its control table for "
+                f"that firmware), and bus {bus_name!r} is Protocol {buses[bus_name].protocol}",
                 allowed=f"protocol {', '.join(str(p) for p in model.protocols)} for {model_name}",
             )
         servo_id = self.integer(servo["id"], f"{key}.servo.id")

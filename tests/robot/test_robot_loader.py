@@ -39,7 +39,7 @@ MISTAKES = [
     ("unknown servo model", "model: XM430-W350", "model: XM999", "joints[0].servo.model",
      "unknown servo model"),
     ("model/protocol mismatch", "protocol: 2.0", "protocol: 1.0", "joints[0].servo.model",
-     "does not speak Protocol 1.0"),
+     "and bus 'main' is Protocol 1.0"),
     ("unknown protocol", "protocol: 2.0", "protocol: 3.0", "buses[0].protocol",
      "unknown protocol"),
     ("unknown bus", "bus: main, direction: 1", "bus: aux, direction: 1",
