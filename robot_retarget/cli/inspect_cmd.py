@@ -27,12 +27,17 @@ from robot_retarget.cli.robot_bvh_facts import (
     format_robot_bvh_text,
     robot_of_bvh,
 )
+from robot_retarget.cli.robot_config_facts import (
+    describe_robot_config,
+    format_robot_config_text,
+    is_robot_config,
+)
 from robot_retarget.cli.trajectory_facts import (
     describe_trajectory,
     format_trajectory_text,
     is_trajectory_file,
 )
-from robot_retarget.errors import MotionFormatError, RetargetError
+from robot_retarget.errors import JointMappingError, MotionFormatError, RetargetError
 from robot_retarget.motion.bvh import BvhClip, read_bvh
 from robot_retarget.motion.canonicalize import canonicalize
 from robot_retarget.motion.human_motion import HumanMotion
@@ -42,7 +47,7 @@ from robot_retarget.skeleton.armatures import TopologyError
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 
 NAME = "inspect"
-HELP = "Describe motion files, keypoint input and robot trajectories."
+HELP = "Describe motion files, keypoint input, robot trajectories and robot configs."
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -51,8 +56,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         metavar="FILE|DIR",
         help="BVH files, folders of BVH files, 2D keypoint input (an OpenPose JSON folder, "
-        "MediaPipe .json, COCO-17 .jsonl) or robot trajectories (.npz, .csv, .json with "
-        "joint_names: robot, lead-in, base, feet, limits)",
+        "MediaPipe .json, COCO-17 .jsonl), robot trajectories (.npz, .csv, .json with "
+        "joint_names: robot, lead-in, base, feet, limits) or robot configs (.yaml: checked as "
+        "convert reads them, then summarised)",
     )
     parser.add_argument(
         "--json",
@@ -158,6 +164,21 @@ def expand_paths(paths: list[str]) -> list[str | MotionFormatError]:
     return out
 
 
+def _describe_human(path: str, clip: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """A performer's BVH; one whose joints map onto no human may be a robot's own BVH for a
+    robot not bundled, which only --robot can tell."""
+    try:
+        return describe(path, unit=args.unit, keep_tpose=args.keep_tpose, clip=clip)
+    except JointMappingError as exc:
+        if args.robot is not None:
+            raise
+        exc.args = (
+            f"{exc.args[0]} (if this is a robot's own BVH, written by convert --bvh-out for a "
+            "robot of your own, pass --robot with its config)",
+        )
+        raise
+
+
 def run(args: argparse.Namespace) -> int:
     reports: list[dict[str, Any]] = []
     failed = 0
@@ -165,7 +186,10 @@ def run(args: argparse.Namespace) -> int:
         try:
             if isinstance(path, MotionFormatError):
                 raise path
-            if is_keypoint_file(path):
+            if is_robot_config(path):
+                info = describe_robot_config(path)
+                text = format_robot_config_text(info)
+            elif is_keypoint_file(path):
                 info = describe_keypoints(path)
                 text = format_keypoints_text(info)
             elif is_trajectory_file(path):
@@ -178,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
                     info = describe_robot_bvh(path, clip, robot)
                     text = format_robot_bvh_text(info)
                 else:
-                    info = describe(path, unit=args.unit, keep_tpose=args.keep_tpose, clip=clip)
+                    info = _describe_human(path, clip, args)
                     text = format_text(info)
         except RetargetError as exc:
             failed += 1

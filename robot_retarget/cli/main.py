@@ -23,7 +23,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("demo", "robot_retarget.cli.demo_cmd", "Built-in demo: clip -> OP3 on a simulated bus."),
     ("convert", "robot_retarget.cli.convert_cmd", "Retarget BVH clip(s) to a robot trajectory."),
     ("stream", "robot_retarget.cli.stream_cmd", "Drive a robot live from a clip or mocap stream."),
-    ("inspect", "robot_retarget.cli.inspect_cmd", "Describe motion files: mapping, fps, units."),
+    ("inspect", "robot_retarget.cli.inspect_cmd", "Describe motion, trajectory and robot files."),
     ("doctor", "robot_retarget.cli.doctor_cmd", "Check a Dynamixel bus: ports, servos, latency."),
     ("train", "robot_retarget.cli.train_cmd", "Train a retargeting network on BVH clips."),
     ("eval", "robot_retarget.cli.eval_cmd", "Evaluate retargeting models on unseen subjects."),

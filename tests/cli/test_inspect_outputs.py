@@ -156,3 +156,45 @@ def test_a_robot_bvh_is_told_as_the_robot_s_not_mapped_as_a_human(
     # a human clip is still one, whatever --robot says
     code, info, _ = _report(capsys, str(clip), "--robot", "op3")
     assert (code, info["family"]) == (0, "CMU MotionBuilder")
+
+
+def test_a_robot_config_is_checked_and_summarised(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """inspect my_robot.yaml had said 'not a BVH file'; it now reads it as convert does."""
+    config = load_robot_config("op3")
+    path = Path(config.source_path or "")
+    code, info, err = _report(capsys, str(path))
+    assert (code, err) == (0, "")
+    assert (info["kind"], info["robot"]) == ("robot config", "op3")
+    assert [j["name"] for j in info["joints"]] == list(config.joint_names)
+    assert info["joints"][0]["limits_deg"] == pytest.approx(
+        np.degrees([config.lower[0], config.upper[0]])
+    )
+    assert sum(len(b["servo_ids"]) for b in info["buses"]) == config.num_joints
+    assert len(info["bones"]) == len(config.bones)
+    assert main(["inspect", str(path)]) == 0
+    assert "robot config, valid" in capsys.readouterr().out
+    bad = tmp_path / "op3.yaml"
+    bad.write_text(path.read_text().replace("retarget:\n", "retarget:\n  w_orientaton: 0.1\n", 1))
+    code, info, err = _report(capsys, str(bad))
+    assert code == 1
+    assert "retarget.w_orientaton" in info["error"]
+    assert "did you mean 'w_orientation'" in err
+
+
+def test_a_bvh_that_is_no_human_says_how_to_read_a_robot_s_own(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A robot BVH of a robot that is not bundled maps onto no human: the error says --robot
+    reads it (it said only to rename the joints after a human naming family)."""
+    bvh = tmp_path / "mine.bvh"
+    bvh.write_text(
+        "HIERARCHY\nROOT base_link\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition "
+        "Zposition Zrotation Xrotation Yrotation\n JOINT arm_link\n {\n  OFFSET 0 0.1 0\n  "
+        "CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 0.1 0\n  }\n "
+        "}\n}\nMOTION\nFrames: 1\nFrame Time: 0.02\n0 0.3 0 0 0 0 0 0 0\n"
+    )
+    code, _, err = _report(capsys, str(bvh))
+    assert code == 1
+    assert "pass --robot with its config" in err
