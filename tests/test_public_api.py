@@ -91,3 +91,44 @@ def test_api_errors_are_retarget_errors_that_name_what_is_wrong(tmp_path: Path) 
         traj.write(out)  # running the README's example twice says how to replace the file
     assert traj.write(out, overwrite=True) == out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.npz"]  # no .part left behind
+
+
+def test_python_m_runs_the_command() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "robot_retarget", "--version"],
+        capture_output=True, text=True, check=True, cwd=REPO,
+    )  # fmt: skip
+    assert out.stdout.startswith("robot-retarget ")
+
+
+def test_the_report_prints_as_convert_does_and_an_existing_file_is_an_output_error(
+    tmp_path: Path,
+) -> None:
+    """``print(result.report)`` printed the whole dataclass, trajectory included; writing over
+    a file without overwrite=True is an OutputWriteError (a MotionFormatError as before)."""
+    from robot_retarget.errors import MotionFormatError, OutputWriteError
+
+    result = rr.retarget(CLIP, robot="op3")
+    text = str(result.report)
+    assert text.startswith(f"{result.trajectory.num_frames} frames, ")
+    assert "limits respected" in text
+    assert "RobotTrajectory" not in text
+    out = result.trajectory.write(tmp_path / "w.npz")
+    with pytest.raises(OutputWriteError, match="already exists") as info:
+        result.trajectory.write(out)
+    assert isinstance(info.value, MotionFormatError)
+
+
+def test_an_excess_within_the_tolerance_is_reported_as_none() -> None:
+    """A step 3e-17 rad over v_max · dt (float rounding) was reported as that excess beside
+    "limits respected"."""
+    from robot_retarget.pipeline.convert import check_limits
+
+    config = rr.load_robot("op3")
+    mid = 0.5 * (config.lower + config.upper)
+    q = np.vstack([mid, mid + config.max_velocity * 0.008 + 3e-17])
+    check = check_limits(config, q, 0.008)
+    assert check.ok
+    assert (check.position_excess_rad, check.velocity_excess_rad) == (0.0, 0.0)
+    q[1, 0] += 1e-6
+    assert check_limits(config, q, 0.008).velocity_excess_rad == pytest.approx(1e-6, rel=1e-3)

@@ -159,7 +159,7 @@ class RobotTrajectory:
         p = Path(path)
         suffix = _format_of(p)
         if p.exists() and not overwrite:
-            raise MotionFormatError(
+            raise OutputWriteError(
                 "the file already exists; pass overwrite=True (--force on the command line) to "
                 "replace it",
                 path=p,

@@ -75,7 +75,8 @@ def check_limits(
         a_from = a
     steps = np.abs(np.diff(a_from, axis=0))
     vel = max(0.0, float(np.max(steps - config.max_velocity * dt_s, initial=0.0)))
-    return LimitCheck(pos, vel)
+    # Within the tolerance is within the limit: no 2.8e-17 rad of float rounding reported.
+    return LimitCheck(*(x if x > _LIMIT_TOL_RAD else 0.0 for x in (pos, vel)))
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,16 @@ class ClipResult:
     @property
     def frames(self) -> int:
         return self.trajectory.num_frames
+
+    def __str__(self) -> str:
+        """What convert prints for a clip: frames, time, limits, clips and fallbacks."""
+        lead = f" ({self.lead_in_frames} of them the lead-in's)" if self.lead_in_frames else ""
+        limits = "respected" if self.limits.ok else f"VIOLATED ({self.limits})"
+        return (
+            f"{self.frames} frames{lead}, {self.wall_s:.2f} s, limits {limits}, safety clipped "
+            f"{self.safety_commands_clipped} commands ({self.safety_joint_clips} joint values), "
+            f"{self.fallbacks} solver fallbacks"
+        )
 
 
 def convert_motion(

@@ -144,7 +144,7 @@ class RetargetStep:
         where the robot is."""
         t0 = time.perf_counter()
         if settle and q_prev is not None:
-            raise ValueError("settle starts a sequence: it takes no q_prev")
+            raise InvalidMotionError("settle starts a sequence: it takes no q_prev")
         local_quats, root_pos = _checked_frame(local_quats, root_pos)
         root_pos = self._root_glitches(root_pos, dt_s)
         quats, root = self.online.step(local_quats, root_pos)
