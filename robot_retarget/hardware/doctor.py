@@ -16,7 +16,7 @@ from pathlib import Path
 from serial.tools import list_ports
 
 from robot_retarget.bench_stats import TimingStats
-from robot_retarget.errors import HardwareError
+from robot_retarget.errors import CommunicationError, HardwareError
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import DynamixelBus
 from robot_retarget.hardware.control_table import control_table
@@ -152,6 +152,14 @@ def check_bus(
         configured = {j.servo_id for j in joints}
         ids = range(p.MAX_ID + 1) if scan_all or bus_cfg.protocol == 2.0 else sorted(configured)
         report.found = bus.scan(ids)
+        # A servo silent through the scan (its ping and the retry) is asked once more, alone,
+        # after the rest: replies lost while a bus settles after its port opened, or to line
+        # noise, had reported a servo MISSING that answered the next run.
+        for sid in sorted(configured - set(report.found)):
+            try:
+                report.found[sid] = bus.ping(sid)
+            except CommunicationError:
+                continue
         report.missing = sorted(configured - set(report.found))
         report.unexpected = sorted(set(report.found) - configured)
         for j in joints:

@@ -156,3 +156,21 @@ def test_doctor_fixes_what_it_can_and_names_a_locked_servo(
     assert [(f.servo_id, f.register) for f in report.fixed] == [(second.servo_id, "cw_angle_limit")]
     assert sim.servos[second.servo_id].get("cw_angle_limit") == 0
     assert not report.ok
+
+
+def test_a_servo_whose_replies_were_lost_in_the_scan_is_asked_again(
+    poppy: RobotConfig, poppy_sim: dict[str, SimulatedBus]
+) -> None:
+    """Two replies of one servo lost during the scan (its ping and the bus's retry): it was
+    reported MISSING though it answers; it is asked once more, alone, after the scan."""
+    bus_cfg = poppy.buses[0]
+    sim = poppy_sim[bus_cfg.name]
+    sid = next(j.servo_id for j in poppy.joints if j.bus == bus_cfg.name)
+    sim.faults.only_id, sim.faults.drop_replies = sid, 2
+    report = doctor.check_bus(poppy, bus_cfg, sim.port or "", cycles=0)
+    assert report.missing == []
+    assert sid in report.found
+    sim.faults.only_id, sim.faults.drop_replies = sid, 10_000  # really gone: still missing
+    report = doctor.check_bus(poppy, bus_cfg, sim.port or "", cycles=0)
+    assert report.missing == [sid]
+    sim.faults.drop_replies = 0
