@@ -82,6 +82,8 @@ def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | L
             names = sorted(
                 n for n in {*BUILTIN_RUNTIMES, *shipped} if not n.startswith("agnostic2d")
             )
+            if len(where.parts) > 1 or where.suffix in (".pt", ".npz"):
+                raise ModelLoadError(f"{text}: no such file or folder", model=text) from None
             raise ModelLoadError(
                 f"no model {text!r}: not a model name, nor a file or folder; available names "
                 f"here: {', '.join(names)} (or pass a runtime .npz written by export)",

@@ -85,6 +85,12 @@ def test_a_model_without_a_runtime_says_how_to_get_one(tmp_path: Path) -> None:
         "try:\n    load_runtime_model(sys.argv[1])\nexcept ModelLoadError as e:\n"
         "    print(e)\n"
     )
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "best.pt").write_bytes(b"a checkpoint only torch reads")
     out = _run(code, str(tmp_path / "run" / "best.pt"))
     assert "torch is not installed" in out.stdout
     assert "export" in out.stdout
+    # A path that is not there is said to be missing: torch would not find it either.
+    out = _run(code, str(tmp_path / "gone" / "best.pt"))
+    assert "no such file or folder" in out.stdout
+    assert "torch" not in out.stdout
