@@ -23,6 +23,7 @@ from robot_retarget.hardware.types import JointCommand
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_units import ServoUnits
 from robot_retarget.sim.dxl_bus import SimulatedBus
+from tests.pipeline.scripted import FakeClock
 
 MakeBuses = Callable[..., dict[str, DynamixelBus]]
 FRAMES = 2000
@@ -467,14 +468,6 @@ def test_a_dead_second_bus_stops_both_buses(
         assert not any(s.torque_on for s in poppy_sim[poppy.buses[1].name].servos.values())
 
 
-class _Clock:
-    def __init__(self) -> None:
-        self.t = 10.0
-
-    def now(self) -> float:
-        return self.t
-
-
 def test_commands_faster_than_real_time_are_refused_without_a_safety_layer(
     op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
 ) -> None:
@@ -482,7 +475,7 @@ def test_commands_faster_than_real_time_are_refused_without_a_safety_layer(
     between them: the backend alone lets its clock budget (four periods' worth) go, then
     refuses, sends nothing and switches torque off."""
     sim = next(iter(op3_sim.values()))
-    clock = _Clock()
+    clock = FakeClock()
     shoulder = op3.joint_index("r_sho_pitch")
     reach = 0.9 * op3.max_velocity[shoulder] / op3.control_rate_hz
     sign = 1.0 if op3.upper[shoulder] - op3.init_pose[shoulder] > 0.5 else -1.0
@@ -506,7 +499,7 @@ def test_behind_a_safety_layer_the_clock_budget_never_refuses(
 ) -> None:
     """The same commands through a SafetyLayer on the same clock: held to the time that
     passed (a tenth of a period per command), never refused by the backend."""
-    clock = _Clock()
+    clock = FakeClock()
     safe = SafetyLayer(op3, DynamixelBackend(op3, make_buses(op3, op3_sim)), clock=clock.now)
     shoulder = op3.joint_index("r_sho_pitch")
     sign = 1.0 if op3.upper[shoulder] - op3.init_pose[shoulder] > 0.5 else -1.0

@@ -13,6 +13,7 @@ from robot_retarget.hardware.safety import SafetyLayer, UnsafeCommandError
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.sim.backend import SimBackend
+from tests.pipeline.scripted import FakeClock
 
 
 def _layer(config: RobotConfig) -> tuple[SafetyLayer, SimBackend]:
@@ -121,21 +122,13 @@ def test_in_range_commands_pass_unchanged(op3: RobotConfig) -> None:
     assert safe.stats.step_clips == 0
 
 
-class _Clock:
-    def __init__(self) -> None:
-        self.t = 50.0
-
-    def now(self) -> float:
-        return self.t
-
-
 def test_commands_sent_faster_than_their_stamps_are_held_to_the_time_that_passed(
     op3: RobotConfig,
 ) -> None:
     """A trajectory played in a loop that does not wait: stamps a period apart, a tenth of a
     period between the calls. Each joint moves no further than its velocity limit allows in
     the time that passed (plus the budget's two periods), however the commands are stamped."""
-    clock = _Clock()
+    clock = FakeClock()
     inner = SimBackend(op3, realtime=False, clock=clock.now)
     safe = SafetyLayer(op3, inner, clock=clock.now)
     safe.connect()
@@ -159,7 +152,7 @@ def test_commands_sent_faster_than_their_stamps_are_held_to_the_time_that_passed
 def test_a_loop_at_its_rate_keeps_every_full_step(op3: RobotConfig) -> None:
     """The loop's ticks come late by up to most of a period and the next one early (it keeps
     its schedule): every command may still take a full period's step."""
-    clock = _Clock()
+    clock = FakeClock()
     inner = SimBackend(op3, realtime=False, clock=clock.now)
     safe = SafetyLayer(op3, inner, clock=clock.now)
     safe.connect()
@@ -184,7 +177,7 @@ def test_no_window_of_time_sees_more_than_the_velocity_limit(
     """Whatever the stamps and the time between calls: between any two commands a joint moves
     at most v_max · (the time that passed + the budget's two periods), and each command at most
     v_max · (its stamp step, at most a period)."""
-    clock = _Clock()
+    clock = FakeClock()
     inner = SimBackend(op3, realtime=False, clock=clock.now)
     safe = SafetyLayer(op3, inner, clock=clock.now)
     safe.connect()
