@@ -313,6 +313,39 @@ def _agnostic2d_options_given(args: argparse.Namespace) -> list[str]:
     return [option for option, set_ in given.items() if set_]
 
 
+# Command-line options that shape a run, and the TrainConfig field each sets: on --resume, one
+# given with another value than the run was started with is refused (it was silently ignored).
+_RESUMED_OPTIONS: dict[str, str] = {
+    "data": "data_dir", "batch_size": "batch_size", "window": "window_frames", "fps": "fps",
+    "val_subjects": "validation_subjects", "robots": "robots", "val_every": "val_every",
+    "checkpoint_every": "checkpoint_every", "log_every": "log_every", "seed": "seed",
+    "lr": "lr", "model_config": "model_config", "disc_config": "discriminator_config",
+    "loss_weight": "loss_weights", "same_skeleton_recon": "same_skeleton_recon",
+    "max_frames": "max_frames", "exclude_subjects": "exclude_subjects",
+    "live_noise": "live_noise",
+}  # fmt: skip
+
+
+def _check_resumed_settings(args: argparse.Namespace, asked: Any, stored: Any) -> None:
+    """Refuse an option given on a --resume command line whose value differs from the run's."""
+    defaults = argparse.ArgumentParser()
+    configure(defaults)
+    changed = []
+    for dest, field in _RESUMED_OPTIONS.items():
+        given = getattr(args, dest) != defaults.get_default(dest)
+        if given and getattr(asked, field) != getattr(stored, field):
+            option = "--" + dest.replace("_", "-")
+            changed.append(f"{option} ({getattr(asked, field)!r}, the run has "
+                           f"{getattr(stored, field)!r})")  # fmt: skip
+    if changed:
+        raise TrainArgumentError(
+            f"--resume continues the run in {args.out} with the settings it was started with; "
+            f"{_and(changed)} {'differs' if len(changed) == 1 else 'differ'}: drop "
+            f"{'it' if len(changed) == 1 else 'them'}, or start a new run (another --out, or "
+            "--force)"
+        )
+
+
 def _and(items: list[str]) -> str:
     return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
 
@@ -336,6 +369,31 @@ def run(args: argparse.Namespace) -> int:
         )
     subjects = tuple(s for s in args.val_subjects.split(",") if s)
     robots = tuple(r for r in args.robots.split(",") if r)
+    asked = TrainConfig(
+        model=args.model,
+        data_dir=args.data,
+        out_dir=args.out,
+        steps=args.steps,
+        batch_size=args.batch_size,
+        window_frames=args.window,
+        fps=args.fps,
+        validation_subjects=subjects,
+        robots=robots,
+        val_every=args.val_every,
+        checkpoint_every=args.checkpoint_every,
+        log_every=args.log_every,
+        seed=args.seed,
+        device=args.device,
+        lr=args.lr,
+        model_config=_model_config(args.model_config),
+        discriminator_config=_model_config(args.disc_config),
+        loss_weights=_model_config(args.loss_weight, "--loss-weight"),
+        same_skeleton_recon=args.same_skeleton_recon,
+        max_frames=args.max_frames,
+        cache_dir=args.cache_dir,
+        exclude_subjects=tuple(s for s in args.exclude_subjects.split(",") if s),
+        live_noise=args.live_noise,
+    )
     if args.resume and Path(args.out, "config.json").is_file():
         stored, _ = load_run(args.out)
         if stored.model != args.model:
@@ -343,36 +401,26 @@ def run(args: argparse.Namespace) -> int:
                 f"--resume: the run in {args.out} trains {stored.model}, not {args.model}; "
                 f"pass --model {stored.model}"
             )
-        # Resume with the stored settings; only --steps (to extend a run) and --device change.
+        _check_resumed_settings(args, asked, stored)
+        state_path = Path(args.out, "trainer_state.pt")
+        done = (
+            int(torch.load(state_path, map_location="cpu", weights_only=True)["step"])
+            if state_path.is_file()
+            else 0
+        )
+        if args.steps <= done:
+            raise TrainArgumentError(
+                f"--resume: the run in {args.out} is already at step {done}, and --steps "
+                f"{args.steps} asks for no more; pass a larger --steps to train on"
+            )
+        # Resume with the stored settings; only --steps (to extend a run), --device and the
+        # cache folder change.
         config = TrainConfig.from_json(
-            {**stored.to_json(), "steps": args.steps, "device": args.device}
-        )
+            {**stored.to_json(), "steps": args.steps, "device": args.device,
+             "cache_dir": args.cache_dir}
+        )  # fmt: skip
     else:
-        config = TrainConfig(
-            model=args.model,
-            data_dir=args.data,
-            out_dir=args.out,
-            steps=args.steps,
-            batch_size=args.batch_size,
-            window_frames=args.window,
-            fps=args.fps,
-            validation_subjects=subjects,
-            robots=robots,
-            val_every=args.val_every,
-            checkpoint_every=args.checkpoint_every,
-            log_every=args.log_every,
-            seed=args.seed,
-            device=args.device,
-            lr=args.lr,
-            model_config=_model_config(args.model_config),
-            discriminator_config=_model_config(args.disc_config),
-            loss_weights=_model_config(args.loss_weight, "--loss-weight"),
-            same_skeleton_recon=args.same_skeleton_recon,
-            max_frames=args.max_frames,
-            cache_dir=args.cache_dir,
-            exclude_subjects=tuple(s for s in args.exclude_subjects.split(",") if s),
-            live_noise=args.live_noise,
-        )
+        config = asked
     last_val: dict[str, float] = {}
 
     def show(p: TrainProgress) -> None:

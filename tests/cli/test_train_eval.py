@@ -114,6 +114,15 @@ def test_train_refuses_resuming_another_model(mocap: Path, tmp_path: Path) -> No
     args[1] = "nkn"
     with pytest.raises(RetargetError, match="pass --model pmnet"):
         _run(train_cmd, [*args, "--resume"])
+    # Settings given again with other values were silently ignored (the stored ones trained):
+    # now refused by name; --steps no larger than the run's is no resume either.
+    args = _train_args(mocap, out, cache, 2)
+    with pytest.raises(RetargetError, match=r"--lr \(0.001, the run has 0.0001\) differs"):
+        _run(train_cmd, [*args, "--resume", "--lr", "1e-3"])
+    with pytest.raises(RetargetError, match=r"--data .* differs"):
+        _run(train_cmd, [*args[:3], str(tmp_path), *args[4:], "--resume"])
+    with pytest.raises(RetargetError, match="already at step 1, and --steps 1 asks for no more"):
+        _run(train_cmd, [*_train_args(mocap, out, cache, 1), "--resume"])
 
 
 def test_bad_model_config_is_a_clear_error(mocap: Path, tmp_path: Path) -> None:
