@@ -113,7 +113,10 @@ def run(args: argparse.Namespace) -> int:
         )
         val = dataset
     else:
-        _, val = dataset.split(subjects)
+        if args.val_subjects is None:  # the default validation subjects the folder holds
+            subjects = tuple(x for x in subjects if x in dataset.subjects)
+        # Scored only: a folder of validation subjects alone needs no training subject.
+        val = dataset.only(subjects)
     robot_names = [r for r in (args.robot or ["op3"]) if r != "none"]
     robots = robot_skeletons(tuple(robot_names))
     settings = EvalSettings(robots=tuple(robot_names), max_frames=args.max_frames, seed=args.seed)

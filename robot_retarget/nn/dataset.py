@@ -131,6 +131,13 @@ class MotionDataset:
         digest = hashlib.sha256(f"{self.data_hash}:{','.join(keep)}".encode()).hexdigest()
         return MotionDataset(clips, digest, self.fps)
 
+    def only(self, subjects: Iterable[str]) -> MotionDataset:
+        """The clips of ``subjects`` (scoring needs no training subjects, unlike
+        :meth:`split`); raises DatasetError for a subject the data does not hold."""
+        keep = set(subjects)
+        self._check_known(keep, "validation", "--val-subjects")
+        return self.subset(keep)
+
     def without(self, subjects: Iterable[str]) -> MotionDataset:
         """The clips of every subject but ``subjects`` (a held-out test fold: neither trained
         nor validated on); raises DatasetError for a subject the data does not hold."""

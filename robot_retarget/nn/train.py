@@ -155,6 +155,45 @@ class TrainError(RetargetError):
         super().__init__(f"{self.path}: {message}" if self.path is not None else message)
 
 
+def _check_networks(config: TrainConfig) -> None:
+    """The model's and discriminator's settings, before any data is read: an option the
+    network does not take, a value it cannot be built with (a negative size), a discriminator
+    setting for a model trained without one, and a window shorter than the discriminator's
+    patch (each had ended in a traceback, some after the data load)."""
+    if config.discriminator_config and not has_discriminator(config.model):
+        raise TrainError(
+            f"--disc-config: {config.model} is trained without a discriminator; drop it"
+        )
+    probes: list[tuple[str, Callable[[], Any]]] = (
+        [
+            (
+                "--disc-config",
+                lambda: build_discriminator(config.model, **config.discriminator_config),
+            )
+        ]
+        if has_discriminator(config.model)
+        else []
+    )
+    if config.model != "san":  # SAN's encoders are sized by the data's skeletons: built later
+        probes.insert(
+            0, ("--model-config", lambda: build_model(config.model, **config.model_config))
+        )
+    for option, build in probes:
+        try:
+            net = build()
+        except (TypeError, ValueError, RuntimeError) as exc:
+            raise TrainError(
+                f"{option}: {config.model} cannot be built with these settings ({exc})"
+            ) from None
+        need = getattr(net, "receptive_field", None)
+        if option == "--disc-config" and need is not None and config.window_frames - 1 < need:
+            raise TrainError(
+                f"--window {config.window_frames}: {config.model}'s patch discriminator scores "
+                f"{need} frame-to-frame steps at a time, so a window needs at least {need + 1} "
+                f"frames; pass --window {need + 1} or more"
+            )
+
+
 def _seed_for(seed: int, step: int) -> int:
     return int(np.random.SeedSequence([seed, 3, step]).generate_state(1)[0])
 
@@ -303,6 +342,7 @@ def train(
         raise TrainError(
             f"--live-noise trains the residual model's denoiser; {config.model} has none"
         )
+    _check_networks(config)
     out = Path(config.out_dir)
     cfg_path = out / "config.json"
     state_path = out / "trainer_state.pt"

@@ -131,6 +131,30 @@ def test_bad_model_config_is_a_clear_error(mocap: Path, tmp_path: Path) -> None:
         _run(train_cmd, [*args, "--model-config", "oops"])
 
 
+@pytest.mark.parametrize(
+    ("model", "extra", "message"),
+    [
+        ("pmnet", ["--model-config", "hidden_size=-5"], "--model-config: pmnet cannot be built"),
+        ("pmnet", ["--disc-config", "bogus=3"], "--disc-config: pmnet cannot be built"),
+        ("residual", ["--disc-config", "channels=3"], "trained without a discriminator"),
+        ("tdcn", ["--window", "31"], "a window needs at least 32 frames; pass --window 32"),
+    ],
+)  # fmt: skip
+def test_a_network_that_cannot_be_built_is_one_line_before_the_data(
+    mocap: Path, tmp_path: Path, model: str, extra: list[str], message: str
+) -> None:
+    """These had ended in tracebacks from torch (some after the data load; a TDCN's --window
+    16 asked for 31 frames, then refused 31)."""
+    args = [
+        "--model", model, "--data", str(mocap), "--out", str(tmp_path / "r"), "--steps", "1",
+        "--batch-size", "4", "--window", "8", "--val-subjects", "s2", "--robots", "op3",
+        "--cache-dir", str(tmp_path / "c"), "--threads", "1",
+    ]  # fmt: skip
+    with pytest.raises(RetargetError, match=message):
+        _run(train_cmd, [*args, *extra])
+    assert not (tmp_path / "r").exists()
+
+
 def test_bench_defaults_cover_copy_nkn_pmnet_residual() -> None:
     parser = argparse.ArgumentParser()
     benchmark.configure(parser)
@@ -247,3 +271,16 @@ def test_eval_says_when_without_foot_lock_adds_no_row(
     captured = capsys.readouterr()
     assert "note: --without-foot-lock scores models that have a foot lock" in captured.err
     assert len(json.loads(captured.out)["results"]) == 1
+
+
+def test_eval_scores_a_folder_of_validation_subjects_alone(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """eval trains nothing: a folder holding only the subjects named was refused ("leave at
+    least one for training")."""
+    only = tmp_path / "only"
+    shutil.copytree(mocap / "s2", only / "s2")
+    args = ["--data", str(only), "--model", "copy", "--max-frames", "10", "--json",
+            "--cache-dir", str(tmp_path / "c")]  # fmt: skip
+    assert _run(eval_cmd, [*args, "--val-subjects", "s2"]) == 0
+    assert json.loads(capsys.readouterr().out)["subjects"] == ["s2"]
