@@ -162,11 +162,11 @@ def _check_arguments(args: argparse.Namespace) -> None:
     for robot in args.robot or []:
         if robot != "none":
             load_robot_config(robot)  # a ConfigError naming the robots there are
-    if args.device.startswith("cuda"):
-        import torch
+    from robot_retarget.nn.device import device_problem
 
-        if not torch.cuda.is_available():  # before the data load and the copy baselines' scores
-            raise TrainArgumentError(f"--device {args.device}: torch sees no CUDA device; use cpu")
+    problem = device_problem(args.device)  # before the data load and the copy baselines' scores
+    if problem is not None:
+        raise TrainArgumentError(problem)
     out = Path(args.out)
     # A folder that can be made and written (crossval makes it as it writes crossval.json).
     check_folder(out, option="--out", create=True)

@@ -50,6 +50,7 @@ from robot_retarget.nn.dataset import (
     leg_length,
     load_dataset,
 )
+from robot_retarget.nn.device import device_problem
 from robot_retarget.nn.keypoint_lineage import check_lineage
 from robot_retarget.nn.keypoint_teacher import KeypointTeacher, TeacherAnswer
 from robot_retarget.nn.models.agnostic2d import Agnostic2D, rotation_6d_to_matrix
@@ -610,8 +611,9 @@ def _initial_model(cfg: KeypointTrainConfig) -> tuple[Agnostic2D, dict[str, Any]
 
 
 def _device(name: str) -> torch.device:
-    if name.startswith("cuda") and not torch.cuda.is_available():
-        raise KeypointTrainError("--device cuda asked for, but torch sees no CUDA device; use cpu")
+    problem = device_problem(name)
+    if problem is not None:
+        raise KeypointTrainError(problem)
     return torch.device(name)
 
 

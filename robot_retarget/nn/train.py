@@ -60,6 +60,7 @@ from robot_retarget.nn.dataset import (
     load_dataset,
     robot_skeletons,
 )
+from robot_retarget.nn.device import device_problem
 from robot_retarget.nn.distributed import DataParallel, DataParallelError
 from robot_retarget.nn.features import compute_features, skeleton_height
 from robot_retarget.nn.losses import end_effector_weights, reconstruction_loss, squared_error
@@ -199,8 +200,9 @@ def _seed_for(seed: int, step: int) -> int:
 
 
 def _device(name: str) -> torch.device:
-    if name.startswith("cuda") and not torch.cuda.is_available():
-        raise TrainError("--device cuda asked for, but torch sees no CUDA device; use cpu")
+    problem = device_problem(name)
+    if problem is not None:
+        raise TrainError(problem)
     return torch.device(name)
 
 
