@@ -55,7 +55,13 @@ from robot_retarget.nn.dataset import (
 )
 from robot_retarget.nn.inference import load_model
 from robot_retarget.nn.models.optimizers import LEARNING_RATE
-from robot_retarget.nn.train import TRAINABLE_MODELS, TrainConfig, TrainProgress, train
+from robot_retarget.nn.train import (
+    TRAINABLE_MODELS,
+    TrainConfig,
+    TrainProgress,
+    check_networks,
+    train,
+)
 
 CROSSVAL_JSON = "crossval.json"
 BASELINES: tuple[str, ...] = ("copy", "copy-scaled")
@@ -202,6 +208,8 @@ def crossval(
     if len(set(config.models)) != len(config.models):
         raise CrossvalError(f"model(s) named twice: {list(config.models)}")
     out = Path(config.out_dir)
+    for model in config.models:  # before crossval.json is written: a refused run leaves none
+        check_networks(config.train_config(model, out / model, (), ()))
     report_path = out / CROSSVAL_JSON
     dataset = load_dataset(
         config.data_dir, fps=config.fps, max_frames=config.max_frames, cache_dir=config.cache_dir

@@ -156,7 +156,7 @@ class TrainError(RetargetError):
         super().__init__(f"{self.path}: {message}" if self.path is not None else message)
 
 
-def _check_networks(config: TrainConfig) -> None:
+def check_networks(config: TrainConfig) -> None:
     """The model's and discriminator's settings, before any data is read: an option the
     network does not take, a value it cannot be built with (a negative size), a discriminator
     setting for a model trained without one, and a window shorter than the discriminator's
@@ -344,7 +344,7 @@ def train(
         raise TrainError(
             f"--live-noise trains the residual model's denoiser; {config.model} has none"
         )
-    _check_networks(config)
+    check_networks(config)
     out = Path(config.out_dir)
     cfg_path = out / "config.json"
     state_path = out / "trainer_state.pt"

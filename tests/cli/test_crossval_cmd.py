@@ -65,6 +65,9 @@ def test_crossval_json_then_resume_as_markdown(
         # --resume then refuses.
         (("--robot", "op4"), "no robot config named 'op4'"),
         (("--resume", ""), "--resume: nothing to resume"),  # it started a new cross-validation
+        # A model that cannot be built had written crossval.json first: the retry was refused
+        # ("pass --resume") and so was the resume ("model_config differs").
+        (("--model-config", "hidden_size=-5"), "--model-config: residual cannot be built"),
     ],
 )
 def test_errors_are_one_line(
