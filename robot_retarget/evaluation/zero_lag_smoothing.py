@@ -54,7 +54,10 @@ def zero_lag_smoothed(stream: CorruptedStream, sigma_s: float) -> CorruptedStrea
         unit = bone / np.where(has_direction, length, 1.0)[:, None]
         direction = w @ np.where(has_direction[:, None], unit, 0.0)
         norm = np.linalg.norm(direction, axis=1)
-        smooth = has_direction & (norm > 0.5)  # opposite directions that cancel: kept as sent
-        rebuilt = direction / np.where(smooth, norm, 1.0)[:, None] * (w @ length)[:, None]
-        out[:, j] = out[:, parent] + np.where(smooth[:, None], rebuilt, bone)
+        # Directions that cancel out (a joint on its parent, seen through jitter) keep their
+        # average, shrunk as it is, as the live filter does: kept as sent, they would carry
+        # the parent's raw jitter into everything above it.
+        scale = np.where(norm > 0.5, norm, 1.0)
+        rebuilt = direction / scale[:, None] * (w @ length)[:, None]
+        out[:, j] = out[:, parent] + np.where(has_direction[:, None], rebuilt, bone)
     return CorruptedStream(out, stream.t_s.copy(), stream.kind)

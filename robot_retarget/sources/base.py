@@ -30,6 +30,7 @@ DROP_REASONS: tuple[str, ...] = (
     "oversized",
     "malformed",
     "out_of_order",
+    "second_sender",
     "duplicate",
     "nan",
     "degenerate",
@@ -167,6 +168,11 @@ class SequenceFilter:
       its sequence and clock pass the old ones, i.e. for less than 0.5 s.)
     - anything else: dropped as ``out_of_order`` (a late datagram; a sender that restarted its
       sequence numbers but not its clock; two senders on one port).
+    - after a restart, a frame that continues the stream left behind (its sequence number
+      and timestamp just above that stream's last, nearer than to the current one's) is a
+      second sender on the port: dropped as ``second_sender``, with a warning. Two senders
+      with different sequence and clock bases had otherwise passed as a restart at every
+      switch, and the robot played both performers, alternating packet by packet.
 
     ``warn_after`` (default 30) consecutive ``out_of_order`` drops raise a warning through
     :meth:`SourceStats.warn` (printed live by the CLI), again every ``10 × warn_after``
@@ -185,6 +191,8 @@ class SequenceFilter:
         self._last_seq: int | None = None
         self._last_t: float | None = None
         self._streak = 0  # consecutive out_of_order drops
+        self._left: tuple[int, float] | None = None  # the stream a restart left behind
+        self.second_sender = 0  # frames dropped as another sender's
 
     def _is_restart(self, seq: int, t_s: float) -> bool:
         if self._last_seq is None or self._last_t is None:
@@ -193,9 +201,33 @@ class SequenceFilter:
             return True
         return seq < self._last_seq and t_s < self._last_t - self.restart_backstep_s
 
+    def _continues_left(self, seq: int, t_s: float) -> bool:
+        """Whether the frame continues the stream the last restart left, rather than this."""
+        if self._left is None or self._last_seq is None or self._last_t is None:
+            return False
+        left_seq, left_t = self._left
+        if not (seq > left_seq and t_s > left_t):
+            return False
+        ahead = seq > self._last_seq and t_s > self._last_t
+        return not ahead or seq - left_seq < seq - self._last_seq
+
     def accept(self, seq: int, t_s: float) -> bool:
+        if self._continues_left(seq, t_s):
+            self._left = (seq, t_s)
+            self.second_sender += 1
+            self._stats.drop("second_sender")
+            if self.second_sender == 3 or self.second_sender % (10 * self.warn_after) == 0:
+                self._stats.warn(
+                    f"source: {self.second_sender} packets dropped from a second sender on this "
+                    f"port (seq {seq} at t {t_s:.3f} s, while following seq {self._last_seq} at "
+                    f"t {self._last_t:.3f} s): stop the other sender, or give each its own port"
+                )
+            return False
+        if self._left is not None and seq > self._left[0] and t_s > self._left[1]:
+            self._left = None  # this stream has passed the one it left: nothing left behind
         if self._is_restart(seq, t_s):
             self.restarts += 1
+            self._left = (self._last_seq, self._last_t)  # type: ignore[assignment]
         elif self._last_seq is not None and self._last_t is not None:
             if seq == self._last_seq:
                 self._stats.drop("duplicate")

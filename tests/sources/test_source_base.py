@@ -103,3 +103,31 @@ def test_a_run_of_out_of_order_drops_warns_live() -> None:
     assert len(live) == 2
     with pytest.raises(ValueError, match="warn_after"):
         SequenceFilter(stats, warn_after=0)
+
+
+def test_two_senders_on_one_port_are_not_taken_for_restarts() -> None:
+    """Two programs sending to one port, each with its own sequence and clock: every switch
+    between them passed as a restart, and the robot played both performers, packet by packet.
+    Now the stream followed is kept and the other's packets are dropped, with a warning."""
+    stats = SourceStats()
+    f = SequenceFilter(stats)
+    followed: list[str] = []
+    for k in range(60):
+        for name, seq, t in (("a", k, k / 60), ("b", 100_000 + k, 1000.0 + k / 60)):
+            if f.accept(seq, t):
+                followed.append(name)
+    assert followed.count("b") <= 1  # the first of b's may pass as a jump of a's stream
+    assert followed.count("a") == 60
+    assert stats.dropped["second_sender"] >= 58
+    assert any("second sender on this port" in w for w in stats.warnings)
+
+
+def test_a_restart_leaves_its_old_stream_behind_without_a_warning() -> None:
+    stats = SourceStats()
+    f = SequenceFilter(stats)
+    for k in range(100, 160):
+        assert f.accept(k, 50.0 + k / 60)
+    for k in range(0, 60):  # restarted: seq and clock from 0
+        assert f.accept(k, k / 60)
+    assert f.restarts == 1
+    assert stats.warnings == []
