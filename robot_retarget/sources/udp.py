@@ -22,6 +22,7 @@ from robot_retarget.sources import wire
 from robot_retarget.sources.base import DEFAULT_QUEUE_FRAMES, SourceFrame
 from robot_retarget.sources.position_cleanup import LivePositions
 from robot_retarget.sources.udp_datagram import UdpDatagramSource
+from robot_retarget.sources.wire_sanity import WireSanity
 
 DEFAULT_PORT = 9750
 _QUAT_NORM_TOL = 0.1  # a "unit" quaternion further off than this is a sender bug
@@ -58,6 +59,11 @@ class UdpSource(UdpDatagramSource):
         )
         # Position packets: frozen joints and swapped limbs undone, jitter filtered, then solved.
         self._positions = LivePositions(skeleton, clean=clean_positions)
+        self._sanity = WireSanity()  # a sender's wrong axes, joint order or quaternion order
+
+    def _sanity_warning(self, warning: str | None) -> None:
+        if warning is not None:
+            self.stats.warn(warning)
 
     @property
     def cleans_positions(self) -> bool:
@@ -90,9 +96,11 @@ class UdpSource(UdpDatagramSource):
                 return None
             local = pkt.values / norms
             root = pkt.root if pkt.root is not None else np.zeros(3)
+            self._sanity_warning(self._sanity.rotations(local, pkt.t_s))
         else:
             if not self._filter.accept(pkt.seq, pkt.t_s):
                 return None
+            self._sanity_warning(self._sanity.positions(pkt.values, pkt.t_s))
             # The cleanup remembers the stream, so it sees accepted frames only, in order (a
             # restart shows as a timestamp that went back, and starts it over).
             local, root = self._positions(pkt.values, pkt.t_s)
