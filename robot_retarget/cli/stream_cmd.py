@@ -293,8 +293,8 @@ def run(args: argparse.Namespace) -> int:
             page.close()
     print(f"frames: {result.step.frames} retargeted, {result.stats.commands} commands sent")
     print(result.stats.line())
-    overran = overrun_warning(
-        result.stats.overruns, result.stats.commands, rate, rate_given=args.rate is not None
+    overran = overrun_warning(  # ticks, not commands: a loop with no input sends none
+        result.stats.overruns, result.stats.ticks, rate, rate_given=args.rate is not None
     )
     if overran is not None:
         print(overran, file=sys.stderr)
@@ -309,7 +309,13 @@ def run(args: argparse.Namespace) -> int:
         print(warning)
     modes = ", ".join(f"{m.value}" for _, m in result.transitions)
     print(f"modes: {modes or 'none (no input arrived)'}")
-    if result.interrupted:
+    if result.stop_skipped:
+        print(
+            f"stopped by {'SIGTERM' if _SIGTERM_SEEN else 'Ctrl-C'} twice: the move to the safe "
+            "pose was cut short, torque off where the robot stood (support it before you do "
+            "this on a standing robot)"
+        )
+    elif result.interrupted:
         print(f"stopped by {'SIGTERM' if _SIGTERM_SEEN else 'Ctrl-C'}: torque off")
     if result.step.frames == 0 and not result.interrupted:
         received = source.stats.received
@@ -439,12 +445,12 @@ OVERRUN_SHARE = 0.05  # of the loop's ticks: more overran, and the rate was not 
 
 
 def overrun_warning(
-    overruns: int, commands: int, rate_hz: float, *, rate_given: bool
+    overruns: int, ticks_run: int, rate_hz: float, *, rate_given: bool
 ) -> str | None:
     """A warning when more than :data:`OVERRUN_SHARE` of the loop's ticks overran: the
     machine did not keep ``rate_hz`` (the servos got fewer, later commands than asked).
     ``rate_given``: the rate came from --rate (else it is the robot config's)."""
-    ticks = overruns + commands
+    ticks = overruns + ticks_run
     if ticks == 0 or overruns <= OVERRUN_SHARE * ticks:
         return None
     advice = (

@@ -129,6 +129,8 @@ class LoopResult:
     # The robot's pose as read when streaming began (servo ticks on a bus): the first
     # command's step is bounded from here.
     start_q: FloatArray | None = None
+    # A second Ctrl-C during the smooth stop: the move to the safe pose was cut short.
+    stop_skipped: bool = False
 
 
 class ControlLoop:
@@ -263,7 +265,7 @@ class ControlLoop:
         Any error stops the loop too: the backend still disconnects (torque off) and the
         source still stops before the error propagates.
         """
-        interrupted = False
+        interrupted = stop_skipped = False
         self.safety.connect()
         try:
             try:
@@ -274,7 +276,7 @@ class ControlLoop:
             try:
                 self._smooth_stop()
             except KeyboardInterrupt:
-                interrupted = True
+                interrupted = stop_skipped = True
         finally:
             try:
                 self.safety.disconnect()
@@ -287,6 +289,7 @@ class ControlLoop:
             safety=self.safety.stats,
             step=self.step.stats,
             interrupted=interrupted,
+            stop_skipped=stop_skipped,
             transitions=list(self.transitions),
             log=self.log,
             torque_released=self._ever_released,

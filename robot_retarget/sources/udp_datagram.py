@@ -126,7 +126,12 @@ class UdpDatagramSource(SocketSource):
         # surrogatepass: a JSON token may hold lone surrogates, which plain UTF-8 refuses.
         sent, wanted = (t.encode("utf-8", "surrogatepass") for t in (token, self.token))
         if self.token and not hmac.compare_digest(sent, wanted):
-            self.stats.drop("auth", "the packet's token is not the one --token set")
+            self.stats.drop(
+                "auth",
+                "the packet carries no token; --token requires one"
+                if not token
+                else "the packet's token is not the one --token set",
+            )
             return False
         return True
 

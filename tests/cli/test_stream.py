@@ -372,7 +372,8 @@ def test_second_ctrl_c_switches_off_at_once() -> None:
         sim.settle()
         torque = sim.torque_on()
     assert proc.returncode == 0, err
-    assert "stopped by Ctrl-C" in out
+    # Said apart from a smooth stop: the robot was not brought to the safe pose.
+    assert "stopped by Ctrl-C twice: the move to the safe pose was cut short" in out
     assert "interrupted: stopping smoothly" in err
     assert not any(torque)
 
