@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import shlex
 import sys
@@ -421,6 +422,7 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
     else:
         config = asked
+        done = 0
     last_val: dict[str, float] = {}
 
     def show(p: TrainProgress) -> None:
@@ -428,7 +430,7 @@ def run(args: argparse.Namespace) -> int:
             last_val.update(p.validation)
         if args.quiet:
             return
-        rate = p.elapsed_s / max(p.step, 1)
+        rate = p.elapsed_s / max(p.step - done, 1)  # this process's steps (a resume's too)
         loss = p.losses.get("total", float("nan"))
         val = f" val score {last_val['score']:.4f}" if last_val else ""
         _progress_line(
@@ -440,7 +442,13 @@ def run(args: argparse.Namespace) -> int:
 
     command = _command_line()
     with _run_folder(args):
-        result = train(config, resume=args.resume, progress=show, command=command, fresh=args.force)
+        try:
+            result = train(
+                config, resume=args.resume, progress=show, command=command, fresh=args.force
+            )
+        except KeyboardInterrupt:
+            _say_what_was_kept(Path(args.out))
+            raise
     if os.environ.get("RANK", "0") != "0":
         return 0  # torchrun: rank 0 exports and reports the one run
     runtime = _export_best(result.best_path)
@@ -452,12 +460,33 @@ def run(args: argparse.Namespace) -> int:
                 "runtime": None if runtime is None else str(runtime),
                 "last": str(result.last_path),
                 "steps": result.steps,
-                "best_score": result.best_score,
+                # null without a validation score (JSON has no Infinity: strict readers refuse it)
+                "best_score": result.best_score if math.isfinite(result.best_score) else None,
                 "data_hash": result.data_hash,
             }
         )
     )
     return 0
+
+
+def _say_what_was_kept(out: Path) -> None:
+    """After Ctrl-C: what the run folder holds (best.pt's runtime written too), and how to go
+    on; a run stopped before its first checkpoint keeps nothing (see _run_folder)."""
+    import torch
+
+    state = out / "trainer_state.pt"
+    if not state.is_file():
+        print(f"\ntrain interrupted before its first checkpoint: nothing kept in {out}",
+              file=sys.stderr)  # fmt: skip
+        return
+    step = int(torch.load(state, map_location="cpu", weights_only=True)["step"])
+    if (out / "best.pt").is_file():
+        _export_best(out / "best.pt")
+    print(
+        f"\ntrain interrupted: {out} holds the checkpoints of step {step} (last.pt, and best.pt "
+        "with its runtime best.npz); to go on, run the same command with --resume",
+        file=sys.stderr,
+    )
 
 
 def _export_best(best: Path) -> Path | None:

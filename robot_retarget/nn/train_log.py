@@ -9,6 +9,7 @@ works without TensorFlow or tensorboardX in the product's dependencies.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import socket
 import struct
@@ -102,6 +103,16 @@ def record_bytes(payload: bytes) -> bytes:
     )
 
 
+def _last_elapsed_s(csv_path: Path) -> float:
+    """The elapsed_s of a log's last row (0 for a log without one)."""
+    last = 0.0
+    with csv_path.open(newline="") as f:
+        for row in csv.DictReader(f):
+            with contextlib.suppress(KeyError, TypeError, ValueError):
+                last = float(row["elapsed_s"])
+    return last
+
+
 class TrainLog:
     """Appends scalars to ``<folder>/log.csv`` and to a TensorBoard event file in ``folder``.
 
@@ -111,9 +122,11 @@ class TrainLog:
     def __init__(self, folder: str | Path, *, start_time_s: float | None = None) -> None:
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
-        self.start_time_s = time.time() if start_time_s is None else start_time_s
         csv_path = self.folder / "log.csv"
         new = not csv_path.exists()
+        if start_time_s is None:  # a resumed run's elapsed_s goes on from its last row
+            start_time_s = time.time() - (0.0 if new else _last_elapsed_s(csv_path))
+        self.start_time_s = start_time_s
         self._csv_file: IO[str] = csv_path.open("a", newline="")
         self._csv = csv.writer(self._csv_file)
         if new:

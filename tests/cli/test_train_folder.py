@@ -154,3 +154,18 @@ def test_an_out_that_is_a_file_is_named_as_one(tmp_path: Path) -> None:
     with pytest.raises(train_cmd.TrainArgumentError, match="a file, not a folder"):
         train_cmd._claim_run_folder(_args(a_file))
     assert a_file.read_text() == "not a run"
+
+
+def test_an_interrupted_run_says_what_it_kept_and_how_to_go_on(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C printed only 'interrupted': nothing on the checkpoint kept or on --resume."""
+    import torch
+
+    train_cmd._say_what_was_kept(tmp_path)
+    assert "before its first checkpoint: nothing kept" in capsys.readouterr().err
+    torch.save({"step": 7}, tmp_path / "trainer_state.pt")
+    train_cmd._say_what_was_kept(tmp_path)
+    err = capsys.readouterr().err
+    assert "checkpoints of step 7" in err
+    assert "--resume" in err

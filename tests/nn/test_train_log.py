@@ -53,3 +53,17 @@ def test_tensorboard_reads_the_events(tmp_path: Path) -> None:
     assert set(acc.Tags()["scalars"]) == {"train/loss", "val/score"}
     (event,) = acc.Scalars("val/score")
     assert (event.step, event.value) == (7, 0.125)
+
+
+def test_a_resumed_log_goes_on_from_its_last_elapsed_time(tmp_path: Path) -> None:
+    """A resume's rows had restarted elapsed_s at 0 (2.399 s at step 20, then 1.100 s at 30)."""
+    import time
+
+    with TrainLog(tmp_path, start_time_s=time.time() - 50.0) as log:
+        log.scalars(20, "train", {"total": 1.0})
+    with TrainLog(tmp_path) as log:  # the resume
+        log.scalars(30, "train", {"total": 0.5})
+    with (tmp_path / "log.csv").open(newline="") as f:
+        elapsed = [float(r["elapsed_s"]) for r in csv.DictReader(f)]
+    assert elapsed[0] >= 50.0
+    assert elapsed[1] >= elapsed[0]
