@@ -312,9 +312,19 @@ def _skeleton_aware(model: object) -> SAN | None:
     if isinstance(model, LoadedModel):
         return model.model if isinstance(model.model, SAN) else None
     assert isinstance(model, RuntimeModel)
-    source = model.path.with_suffix(".pt") if model.path is not None else None
+    from robot_retarget.runtime.loader import CHECKPOINT_DIR
+
+    if model.path is None:
+        return None
+    shipped = model.path.resolve().parent == CHECKPOINT_DIR.resolve()
+    if model.path.suffix != ".pt" and not shipped:
+        # A runtime file the user gave reads the canonical joints wherever it lies: the same
+        # bytes had given other trajectories (up to pi rad) with a .pt of its name beside them.
+        # Its own skeleton is read from the .pt checkpoint (--model RUN/best.pt).
+        return None
+    source = model.path.with_suffix(".pt")
     try:
-        loaded = load_model(str(source) if source is not None and source.is_file() else model.name)
+        loaded = load_model(str(source) if source.is_file() else model.name)
     except ModelLoadError:
         return None  # only its numpy runtime is here: the canonical joints
     return loaded.model if isinstance(loaded.model, SAN) else None

@@ -72,7 +72,9 @@ def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | L
             f"{kind}, not a model: give --model {MODEL_FORMS}", path=text, model=text
         )
     if names_runtime_file(text):
-        return load_runtime(text)
+        # Named as given: the file's own record names the checkpoint it was exported from
+        # ("best"), which says nothing of exp/walk.npz.
+        return dataclasses.replace(load_runtime(text), name=text)
     try:
         from robot_retarget.nn.inference import load_model
     except ImportError as exc:

@@ -245,6 +245,15 @@ def test_san_trains_and_is_scored_on_the_files_own_skeletons(
     assert "tiny_walk.bvh: read on its own skeleton (CMU MotionBuilder-25j)" in err
     assert outs[0].shape == outs[1].shape
     assert not np.allclose(outs[0], outs[1])
+    # Its exported runtime reads the canonical joints wherever the file lies (beside best.pt
+    # it had read the clip's own skeleton, elsewhere not: the same bytes, two results).
+    elsewhere = tmp_path / "elsewhere.npz"
+    shutil.copy(out / "best.npz", elsewhere)
+    for runtime in (out / "best.npz", elsewhere):
+        path = tmp_path / f"walk_{runtime.stem}.npz"
+        argv = [str(clip), "--robot", "op3", "--model", str(runtime), "--out", str(path)]
+        assert _run(convert_cmd, argv) == 0
+        np.testing.assert_array_equal(np.load(path)["q"], outs[1])
 
 
 def test_eval_scores_the_network_without_its_foot_lock_beside_it(

@@ -94,3 +94,16 @@ def test_a_model_without_a_runtime_says_how_to_get_one(tmp_path: Path) -> None:
     out = _run(code, str(tmp_path / "gone" / "best.pt"))
     assert "no such file or folder" in out.stdout
     assert "torch" not in out.stdout
+
+
+def test_a_runtime_file_is_named_as_given(tmp_path: Path) -> None:
+    """An exported file was named after the checkpoint it came from ("model best has no foot
+    lock" of exp/san.npz)."""
+    import shutil
+
+    from robot_retarget.runtime.loader import CHECKPOINT_DIR, load_runtime_model
+
+    mine = tmp_path / "mine.npz"
+    shutil.copy(CHECKPOINT_DIR / "default.npz", mine)
+    model = load_runtime_model(str(mine))
+    assert model.name == str(mine)
