@@ -80,7 +80,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-seed", type=int, default=0, help="seed of the denoising noise")
     parser.add_argument("--threads", type=positive_int, default=None, help="torch CPU threads")
     parser.add_argument(
-        "--device", type=torch_device, default="cpu", help="training device: cpu, cuda or cuda:N"
+        "--device", type=torch_device, default="cpu", help="cpu, cuda, cuda:N or mps"
     )
     parser.add_argument("--cache-dir", default=None, help="preprocessed-data cache folder")
     output = parser.add_mutually_exclusive_group()

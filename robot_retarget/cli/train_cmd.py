@@ -110,7 +110,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log-every", type=positive_int, default=25)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--device", type=torch_device, default="cpu", help="cpu (default), cuda or cuda:N"
+        "--device", type=torch_device, default="cpu", help="cpu (default), cuda, cuda:N or mps"
     )
     parser.add_argument(
         "--lr", type=positive_float, default=1e-4, help="Adam learning rate (papers: 1e-4)"

@@ -88,7 +88,7 @@ def _result(name: str, **values: float) -> EvalResult:
 def test_acceptance_goals() -> None:
     copy = _result("copy", cycle=0.0, bone_deg=10.0, denoise=4.0)
     scaled = _result("copy-scaled", skate=0.5, denoise=3.0)
-    good = _result("net", skate=0.8, ee=0.5, contact=0.5, cycle=0.0, denoise=2.0, bone_deg=11.5)
+    good = _result("net", skate=0.8, ee=0.5, contact=0.5, cycle=0.0, denoise=2.0, bone_deg=10.9)
     checks = {c.goal: c.met for c in acceptance([copy, scaled, good], "net")}
     assert checks == {
         "skate below copy": True,
@@ -96,14 +96,14 @@ def test_acceptance_goals() -> None:
         "contact below copy": True,
         "cycle below copy": False,  # copy's cycle is exact: nothing beats 0
         "denoise below copy and copy-scaled": True,
-        "bone_deg within 2° of copy": True,
+        "bone_deg within 1° of copy": True,
     }
     details = {c.goal: c.detail for c in acceptance([copy, scaled, good], "net")}
     assert "lossless here, so this cannot be met" in details["cycle below copy"]
     assert "lossless" not in details["ee below copy"]
-    bad = _result("bad", denoise=3.5, bone_deg=12.5)
+    bad = _result("bad", denoise=3.5, bone_deg=11.5)
     checks = {c.goal: c.met for c in acceptance([copy, scaled, bad], "bad")}
     assert not checks["denoise below copy and copy-scaled"]
-    assert not checks["bone_deg within 2° of copy"]
+    assert not checks["bone_deg within 1° of copy"]
     with pytest.raises(ValueError, match="copy-scaled"):
         acceptance([copy, good], "net")
