@@ -465,6 +465,22 @@ def overrun_warning(
     )
 
 
+def on_the_rate_grid(t_s: Any, q: Any, rate_hz: float) -> Any:
+    """The commands (T, J) sent at loop times ``t_s`` (T,), as rows ``1 / rate_hz`` apart from
+    the first, linearly between commands. A trajectory file has one rate: a row per command had
+    played a stream with --wake-on-input's early ticks (297 rows of an 8 s stream at 20 Hz)
+    or with missed ticks at the wrong speed. Between two commands each within the velocity
+    limit of the last, a row never steps faster than they did."""
+    import numpy as np
+
+    t = np.asarray(t_s, dtype=np.float64) - float(t_s[0])
+    rows = np.asarray(q, dtype=np.float64)
+    keep = np.append(np.diff(t) > 0.0, True)  # a repeated time: its last command
+    t, rows = t[keep], rows[keep]
+    grid = np.arange(int(np.floor(t[-1] * rate_hz + 1e-6)) + 1) / rate_hz
+    return np.stack([np.interp(grid, t, rows[:, j]) for j in range(rows.shape[1])], axis=1)
+
+
 def _save_record(
     path: Path,
     log: Sequence[LogEntry],
@@ -482,8 +498,7 @@ def _save_record(
     from robot_retarget.cli.output_paths import save_with_fallback
     from robot_retarget.motion.trajectory import RobotTrajectory
 
-    # One row per control tick (a missed tick leaves no row).
-    q = np.array([e.q for e in log])
+    q = on_the_rate_grid(np.array([e.t_s for e in log]), np.array([e.q for e in log]), rate_hz)
     traj = RobotTrajectory(joint_names, q, rate_hz)
 
     def warn(line: str) -> None:
@@ -492,4 +507,4 @@ def _save_record(
     written = save_with_fallback(
         path, partial(traj.write, overwrite=True), force=force, option="--record", warn=warn
     )
-    print(f"recorded {len(q)} commands to {written}")
+    print(f"recorded {len(log)} commands to {written} ({len(q)} rows at {rate_hz:g} Hz)")

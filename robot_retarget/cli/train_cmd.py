@@ -22,6 +22,7 @@ from robot_retarget.cli.data_dir import add_data_argument
 from robot_retarget.errors import RetargetError
 from robot_retarget.number_args import (
     int_at_least,
+    non_negative_float,
     non_negative_int,
     positive_float,
     positive_int,
@@ -148,7 +149,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--same-skeleton-recon",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         metavar="WEIGHT",
         help="extra B = A reconstruction loss on the retargeted pose (deviation from the "

@@ -144,7 +144,8 @@ def test_recording_is_saved_elsewhere_when_its_folder_fails_at_the_end(
     assert len(saved) == 1
     assert RobotTrajectory.read(saved[0]).num_frames > 10
     out = capsys.readouterr()
-    assert f"recorded {RobotTrajectory.read(saved[0]).num_frames} commands to {saved[0]}" in out.out
+    rows = RobotTrajectory.read(saved[0]).num_frames
+    assert f"to {saved[0]} ({rows} rows at 125 Hz)" in out.out
     assert f"saved to {saved[0]} instead" in out.err
 
 
@@ -398,8 +399,20 @@ def test_a_recording_survives_an_error_that_stops_the_stream(
                  "--backend", "sim", "--duration", "2.0", "--record", str(record))  # fmt: skip
     with pytest.raises(HardwareError, match="unplugged"):
         stream_cmd.run(args)
-    assert RobotTrajectory.read(record).num_frames == 40
+    assert abs(RobotTrajectory.read(record).num_frames - 40) <= 2  # 40 ticks on the 125 Hz grid
     assert f"recorded 40 commands to {record}" in capsys.readouterr().out
+
+
+def test_a_recording_is_on_its_rate_s_grid_whatever_the_ticks() -> None:
+    """--wake-on-input's early ticks (and missed ones) had been written a row each at the
+    nominal rate: an 8 s stream became 14.85 s at 20 Hz."""
+    rate = 20.0
+    t = np.array([0.0, 0.05, 0.06, 0.08, 0.1, 0.1, 0.25, 0.3])  # early, repeated, missed
+    q = np.stack([t * 2.0, -t], axis=1)  # a joint at 2 rad/s, another at -1 rad/s
+    rows = stream_cmd.on_the_rate_grid(t + 7.0, q, rate)
+    assert rows.shape == (7, 2)  # 0 … 0.3 s at 20 Hz
+    np.testing.assert_allclose(rows[:, 0], np.arange(7) / rate * 2.0, atol=1e-12)
+    assert np.all(np.abs(np.diff(rows, axis=0)) <= np.array([2.0, 1.0]) / rate + 1e-12)
 
 
 def test_a_rate_the_loop_did_not_keep_is_warned_of() -> None:
