@@ -36,6 +36,8 @@ from robot_retarget.sources.udp_datagram import check_bind_address
 
 MAX_HEADER_BYTES = 1 << 20
 MAX_LINE_BYTES = 1 << 16
+_PACE_WINDOW_S = 2.0  # wall seconds of frames judged at once
+_PACE_FACTOR = 1.5  # frames' time over wall time beyond which the sender is too fast
 
 
 def split_header(text: str) -> tuple[str, float, int] | None:
@@ -88,6 +90,8 @@ class TcpBvhSource(SocketSource):
         self._first: HumanMotion | None = None
         self._dt = 0.0
         self._count = 0
+        self._pace_start: tuple[float, float] | None = None  # (wall s, frames' s) judged from
+        self._pace_warned = False
         self._pending = b""
         self._closed = False
         self.error: str | None = None  # why the stream ended early, if it did
@@ -268,4 +272,25 @@ class TcpBvhSource(SocketSource):
             self.stats.accept()
             self._queue.put(frame)
             frames.append(frame)
+        self._check_pace(recv_s)
         return frames
+
+    def _check_pace(self, recv_s: float) -> None:
+        """Warn once when frames come faster than their Frame Time says: each frame is stamped
+        k · Frame Time, so a sender at three times its rate ran the performer three times as
+        fast, and said nothing (the safety report blamed a late loop)."""
+        frames_time = self._count * self._dt
+        if self._pace_start is None:
+            self._pace_start = (recv_s, frames_time)
+            return
+        wall = recv_s - self._pace_start[0]
+        sent = frames_time - self._pace_start[1]
+        if wall >= _PACE_WINDOW_S and not self._pace_warned:
+            if sent > _PACE_FACTOR * wall:
+                self._pace_warned = True
+                self.stats.warn(
+                    f"source: tcp-bvh frames come {sent / wall:.1f}× faster than their Frame "
+                    f"Time ({self._dt:g} s) says: the performer plays that much faster than "
+                    "life; send one frame per Frame Time (or set Frame Time to the rate you send)"
+                )
+            self._pace_start = (recv_s, frames_time)

@@ -160,3 +160,29 @@ def test_a_sender_that_hangs_up_mid_frame_is_reported() -> None:
             _wait_finished(src)
     assert len(frames) == 1
     assert "the sender closed the stream; its last frame was cut short" in src.stats.summary()
+
+
+def test_a_sender_faster_than_its_frame_time_is_warned_of() -> None:
+    """Frames are stamped k · Frame Time: a sender at three times that ran the performer three
+    times as fast, with no word (the safety report blamed a late loop)."""
+    header, rows = _split_file()
+    with bvh_server([header]) as port:
+        src = TcpBvhSource("127.0.0.1", port)
+        with src:
+            dt = src._dt
+            for k, row in enumerate((rows * 20)[:400]):
+                src.feed(row, 100.0 + k * dt / 3.0)  # three frames per Frame Time
+    warned = [w for w in src.stats.warnings if "faster than their Frame Time" in w]
+    assert len(warned) == 1
+    assert "3.0×" in warned[0]
+
+
+def test_a_sender_at_its_frame_time_is_not_warned_of() -> None:
+    header, rows = _split_file()
+    with bvh_server([header]) as port:
+        src = TcpBvhSource("127.0.0.1", port)
+        with src:
+            dt = src._dt
+            for k, row in enumerate((rows * 20)[:400]):
+                src.feed(row, 100.0 + k * dt)
+    assert not [w for w in src.stats.warnings if "Frame Time" in w]
