@@ -24,7 +24,9 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+import numpy.typing as npt
 
+from robot_retarget.array_types import FloatArray
 from robot_retarget.keypoints.coco17 import BODY_JOINTS, NUM_KEYPOINTS
 from robot_retarget.keypoints.glitch_gate import KeypointGate
 from robot_retarget.keypoints.lift import MIN_BODY_POINTS, standing_root
@@ -40,6 +42,7 @@ from robot_retarget.sources.wire import WireError
 
 DEFAULT_KEYPOINT_PORT = 9751
 _BODY = np.array(sorted(BODY_JOINTS), dtype=np.int64)
+_NORMALISED_MAX = 1.5  # points all within [0, this] on an image this × 10 px or wider: normalised
 
 
 class UdpKeypointSource(UdpDatagramSource):
@@ -74,6 +77,8 @@ class UdpKeypointSource(UdpDatagramSource):
         )
         self.min_confidence = min_confidence
         self._root = standing_root(self._skeleton)
+        self._image_size = image_size
+        self._pixels_warned = False
         self._tracker = PersonTracker()
         self._gate = KeypointGate(nominal_fps)
         self._step = model.online()
@@ -92,6 +97,25 @@ class UdpKeypointSource(UdpDatagramSource):
             f"glitch gate: {self._gate.refused} point(s) no body could have made marked missing",
         )
         return gate + self._camera_lines()
+
+    def _check_pixels(
+        self, xy: FloatArray, valid: npt.NDArray[np.bool_], size: tuple[float, float] | None
+    ) -> None:
+        """Warn once when the points look normalised (every one within [0, 1.5]) while the image
+        is pixels wide: they were taken as pixels, the camera fit then made no sense (a focal
+        length of 2 px) and the pose came out 13° off, with no word."""
+        size = size or self._image_size
+        if self._pixels_warned or size is None or min(size) < _NORMALISED_MAX * 10:
+            return
+        seen = xy[valid]
+        if len(seen) < MIN_BODY_POINTS or float(np.abs(seen).max()) > _NORMALISED_MAX:
+            return
+        self._pixels_warned = True
+        self.stats.warn(
+            f"source: every keypoint lies within [0, {_NORMALISED_MAX:g}] while the image is "
+            f"{size[0]:g}×{size[1]:g} px: are they normalised? Keypoints are pixels (x right, "
+            "y down, from the image's top-left corner); multiply by the image size"
+        )
 
     def _camera_lines(self) -> tuple[str, ...]:
         if self._planes is None:
@@ -148,6 +172,7 @@ class UdpKeypointSource(UdpDatagramSource):
             xy, _conf, valid = pkt.people[chosen]
             valid = self._gate.step(xy, valid, pkt.t_s)  # an estimator's glitch: missing
         local = self._step.step(xy, valid)  # the model sees every camera frame, in time
+        self._check_pixels(xy, valid, pkt.image_size)
         if self._planes is not None:  # so does the camera fit, as lift_keypoints(causal=True)
             if pkt.image_size is not None:  # a new size resets the camera fitted so far
                 self._planes.set_image_size(pkt.image_size)
