@@ -466,11 +466,11 @@ def overrun_warning(
 
 
 def on_the_rate_grid(t_s: Any, q: Any, rate_hz: float) -> Any:
-    """The commands (T, J) sent at loop times ``t_s`` (T,), as rows ``1 / rate_hz`` apart from
-    the first, linearly between commands. A trajectory file has one rate: a row per command had
-    played a stream with --wake-on-input's early ticks (297 rows of an 8 s stream at 20 Hz)
-    or with missed ticks at the wrong speed. Between two commands each within the velocity
-    limit of the last, a row never steps faster than they did."""
+    """The commands (T, J) stamped ``t_s`` (T,) (the safety layer's timeline: each step within
+    the velocity limit for the stamps' interval), as rows ``1 / rate_hz`` apart from the first,
+    linearly between commands. A trajectory file has one rate: a row per command had played a
+    stream with --wake-on-input's early ticks (297 rows of an 8 s stream at 20 Hz) or with
+    missed ticks at the wrong speed. A row never steps faster than the commands did."""
     import numpy as np
 
     t = np.asarray(t_s, dtype=np.float64) - float(t_s[0])
@@ -498,7 +498,8 @@ def _save_record(
     from robot_retarget.cli.output_paths import save_with_fallback
     from robot_retarget.motion.trajectory import RobotTrajectory
 
-    q = on_the_rate_grid(np.array([e.t_s for e in log]), np.array([e.q for e in log]), rate_hz)
+    stamps = np.array([e.stamp_s for e in log])
+    q = on_the_rate_grid(stamps, np.array([e.q for e in log]), rate_hz)
     traj = RobotTrajectory(joint_names, q, rate_hz)
 
     def warn(line: str) -> None:

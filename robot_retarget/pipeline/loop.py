@@ -108,13 +108,16 @@ class LoopSettings:
 
 @dataclass(frozen=True)
 class LogEntry:
-    """One tick: loop time, the sender-time it played, the mode and the command (rad) handed to
-    the backend after the safety layer (before any rounding to servo ticks)."""
+    """One tick: loop time, the sender-time it played, the mode, the command (rad) handed to
+    the backend after the safety layer (before any rounding to servo ticks) and its stamp."""
 
     t_s: float
     play_t_s: float
     mode: Mode
     q: FloatArray
+    # The command's stamp: the safety layer's timeline, on which every step keeps within the
+    # velocity limit (loop time jitters around it; a recording is written on it).
+    stamp_s: float = math.nan
 
 
 @dataclass
@@ -231,7 +234,7 @@ class ControlLoop:
         self._sent_any = True
         self.stats.commands += 1
         if self.record:
-            self.log.append(LogEntry(now, play_t, self.mode, self._q_cmd))
+            self.log.append(LogEntry(now, play_t, self.mode, self._q_cmd, stamp))
         if self.mailbox is not None:
             stats = self.stats
             self.mailbox.put(
