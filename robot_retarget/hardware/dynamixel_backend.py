@@ -53,6 +53,7 @@ from robot_retarget.hardware.servo_registers import (
 from robot_retarget.hardware.stage_timer import StageTimer
 from robot_retarget.hardware.state_block import StateBlock
 from robot_retarget.hardware.types import JointCommand, JointState
+from robot_retarget.hardware.velocity_budget import VelocityBudget
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.servo_models import servo_model
 from robot_retarget.robot.servo_units import ServoUnits
@@ -223,9 +224,9 @@ class DynamixelBackend(JointBackend):
         self._command_period_s = 1.0 / config.control_rate_hz  # set_command_period
         # Its own clock budget, as the SafetyLayer's but twice as deep: a backend used without
         # one is refused commands that move faster than the time between them allows.
-        self._clock: Callable[[], float] = time.monotonic  # set_command_clock
-        self._budget = np.zeros(config.num_joints)
-        self._budget_t = 0.0
+        self._budget = VelocityBudget(  # set_command_period, set_command_clock
+            config.max_velocity, _BACKEND_BUDGET_PERIODS * self._command_period_s, time.monotonic
+        )
         self._old_handlers: dict[int, Any] = {}
         self.last_packets: dict[str, bytes] = {}  # bus name → last goal Sync Write sent
         self.parallel_buses = parallel_buses  # may be switched between ticks (bench loop)
@@ -273,7 +274,7 @@ class DynamixelBackend(JointBackend):
             self._close_buses()
             raise
         self._last_q = state.q.copy()
-        self._fill_budget()
+        self._budget.fill()
         self._connected = True
         self._faulted = None
         self._install_signal_handlers()
@@ -478,7 +479,7 @@ class DynamixelBackend(JointBackend):
             wait_s = t0 + k * dt_s - time.monotonic()
             if wait_s > 0.0 and k < steps:
                 self._sleep(wait_s)
-        self._fill_budget()  # the ramp went at its own pace: the stream starts afresh
+        self._budget.fill()  # the ramp went at its own pace: the stream starts afresh
 
     # ----- streaming ---------------------------------------------------------------------------
     def _require_ready(self) -> None:
@@ -524,21 +525,11 @@ class DynamixelBackend(JointBackend):
         if not (math.isfinite(period_s) and period_s > 0.0):
             raise ValueError(f"period_s must be a positive number of seconds, got {period_s}")
         self._command_period_s = period_s
-        self._fill_budget()
+        self._budget.resize(_BACKEND_BUDGET_PERIODS * period_s)
 
     def set_command_clock(self, clock: Callable[[], float]) -> None:
-        self._clock = clock
-        self._fill_budget()
-
-    def _budget_cap(self) -> FloatArray:
-        return np.asarray(
-            self.config.max_velocity * (_BACKEND_BUDGET_PERIODS * self._command_period_s),
-            dtype=np.float64,
-        )
-
-    def _fill_budget(self) -> None:
-        self._budget = self._budget_cap()
-        self._budget_t = self._clock()
+        self._budget.clock = clock
+        self._budget.fill()
 
     def _ticks_from_rad(self, q: FloatArray) -> IntArray:
         """ServoUnits.to_ticks for one finite (J,) vector, without its generic argument checks;
@@ -598,14 +589,10 @@ class DynamixelBackend(JointBackend):
                 "period it runs at with set_command_period)",
                 joints=names,
             )
-        now = self._clock()
-        refill = self.config.max_velocity * max(now - self._budget_t, 0.0)
-        budget = np.minimum(self._budget + refill, self._budget_cap())
-        self._budget_t = now
+        budget = self._budget.available()
         if np.any(step > budget + tick):
             bad = step > budget + tick
             names = tuple(j.name for j, b in zip(self.config.joints, bad, strict=True) if b)
-            self._budget = budget
             raise UnsafeCommandError(
                 f"commands come faster than real time: {', '.join(names)} would move "
                 f"{np.round(step[bad], 4).tolist()} rad, but at the velocity limit only "
@@ -614,7 +601,7 @@ class DynamixelBackend(JointBackend):
                 "with, or put a SafetyLayer in front, which bounds steps by the time that passed)",
                 joints=names,
             )
-        self._budget = np.maximum(budget - step, 0.0)
+        self._budget.spend(step)
 
     def send(self, cmd: JointCommand) -> JointCommand:
         self._require_ready()

@@ -7,11 +7,11 @@ step clipping are counted per joint and summarised by :meth:`SafetyLayer.report`
 the config's control period, so jumping timestamps cannot loosen the step bound; a command
 whose time does not come after the previous one's is refused (UnsafeCommandError). Stamps are
 the caller's word, so the layer also keeps time itself (``clock``, the wall clock unless the
-caller drives a simulated or recorded timeline): each joint has a budget that fills at its
-velocity limit as the clock runs, up to :data:`CLOCK_BUDGET_PERIODS` periods' worth, and every
-step spends from it. Commands sent faster than their stamps say (a trajectory played in a
-loop without waiting) are bounded by the time that really passed; a loop at its rate never
-notices (a late tick and the early one after it fit in the budget). For a
+caller drives a simulated or recorded timeline): a
+:class:`~robot_retarget.hardware.velocity_budget.VelocityBudget` up to
+:data:`CLOCK_BUDGET_PERIODS` periods deep. Commands sent faster than their stamps say (a
+trajectory played in a loop without waiting) are bounded by the time that really passed; a
+loop at its rate never notices (a late tick and the early one after it fit in the budget). For a
 backend that rounds commands (a servo's position tick, ``JointBackend.position_quantum_rad``)
 the command returned is the one it will write, on its grid and within ``v_max · dt`` of what
 it wrote last (the nearest tick could be one too far).
@@ -29,6 +29,7 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import HardwareError
 from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.types import JointCommand, JointState
+from robot_retarget.hardware.velocity_budget import VelocityBudget
 from robot_retarget.robot.config import RobotConfig
 
 
@@ -89,12 +90,11 @@ class SafetyLayer(JointBackend):
         self._prev_t: float | None = None
         # A backend that rounds commands to ticks: what it last wrote, and its tick size.
         backend.set_command_period(self.period_s)  # its own step check, at this period
-        self._clock = clock
+        self._budget: VelocityBudget | None = None
         if clock is not None:
             backend.set_command_clock(clock)
-        self._budget_cap = self.max_velocity * (CLOCK_BUDGET_PERIODS * self.period_s)
-        self._budget = self._budget_cap.copy()
-        self._budget_t = 0.0
+            depth_s = CLOCK_BUDGET_PERIODS * self.period_s
+            self._budget = VelocityBudget(self.max_velocity, depth_s, clock)
         self._quantum = backend.position_quantum_rad
         self._prev_sent: FloatArray | None = None
         if self._quantum is not None:
@@ -122,8 +122,8 @@ class SafetyLayer(JointBackend):
         next command clamped to the limits only, as the start of a recording)."""
         self._prev_q = None if q is None else np.clip(q, self.lower, self.upper)
         self._prev_t = None
-        self._budget = self._budget_cap.copy()
-        self._budget_t = 0.0 if self._clock is None else self._clock()
+        if self._budget is not None:
+            self._budget.fill()
         # Where the servos are, on their grid: the first command's ticks keep to the bound
         # from there too (the nearest tick could step half a tick past a ramp's step).
         self._prev_sent = (
@@ -179,14 +179,8 @@ class SafetyLayer(JointBackend):
                     )
                 dt = min(cmd.t_s - self._prev_t, self.period_s)
             bound = stamp_bound = self.max_velocity * dt
-            if self._clock is not None:
-                now = self._clock()
-                elapsed = max(now - self._budget_t, 0.0)
-                self._budget = np.minimum(
-                    self._budget + self.max_velocity * elapsed, self._budget_cap
-                )
-                self._budget_t = now
-                bound = np.minimum(bound, self._budget)
+            if self._budget is not None:
+                bound = np.minimum(bound, self._budget.available())
             # prev lies inside the limits, so the limits and the step box intersect, and one
             # clamp to the intersection is the limit clamp followed by the step clamp.
             lo = np.maximum(prev - bound, lower)
@@ -198,7 +192,7 @@ class SafetyLayer(JointBackend):
             q_pos = np.minimum(np.maximum(q, lower), upper)
             pos_clipped = q_pos != q
             moved = q_safe != q_pos
-            if stamp_bound is not None and self._clock is not None and prev is not None:
+            if stamp_bound is not None and self._budget is not None and prev is not None:
                 # What the stamps alone allowed; the clock held a joint back where it differs.
                 q_stamp = np.minimum(
                     np.maximum(q_pos, np.maximum(prev - stamp_bound, lower)),
@@ -221,8 +215,8 @@ class SafetyLayer(JointBackend):
             for n, c in zip(names, pos_clipped | moved, strict=True):
                 if c:
                     s.per_joint[n] += 1
-        if prev is not None and self._clock is not None:
-            self._budget = np.maximum(self._budget - np.abs(q_safe - prev), 0.0)
+        if prev is not None and self._budget is not None:
+            self._budget.spend(np.abs(q_safe - prev))
         self._prev_q = q_safe
         self._prev_t = cmd.t_s
         if bound is not None and max_step is not None:
