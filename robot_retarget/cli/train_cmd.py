@@ -404,12 +404,7 @@ def run(args: argparse.Namespace) -> int:
                 f"pass --model {stored.model}"
             )
         _check_resumed_settings(args, asked, stored)
-        state_path = Path(args.out, "trainer_state.pt")
-        done = (
-            int(torch.load(state_path, map_location="cpu", weights_only=True)["step"])
-            if state_path.is_file()
-            else 0
-        )
+        done = _checkpointed_step(Path(args.out)) or 0
         if args.steps <= done:
             raise TrainArgumentError(
                 f"--resume: the run in {args.out} is already at step {done}, and --steps "
@@ -470,17 +465,24 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _say_what_was_kept(out: Path) -> None:
-    """After Ctrl-C: what the run folder holds (best.pt's runtime written too), and how to go
-    on; a run stopped before its first checkpoint keeps nothing (see _run_folder)."""
+def _checkpointed_step(out: Path) -> int | None:
+    """The step of the run folder's last checkpoint (trainer_state.pt), None without one."""
     import torch
 
     state = out / "trainer_state.pt"
     if not state.is_file():
+        return None
+    return int(torch.load(state, map_location="cpu", weights_only=True)["step"])
+
+
+def _say_what_was_kept(out: Path) -> None:
+    """After Ctrl-C: what the run folder holds (best.pt's runtime written too), and how to go
+    on; a run stopped before its first checkpoint keeps nothing (see _run_folder)."""
+    step = _checkpointed_step(out)
+    if step is None:
         print(f"\ntrain interrupted before its first checkpoint: nothing kept in {out}",
               file=sys.stderr)  # fmt: skip
         return
-    step = int(torch.load(state, map_location="cpu", weights_only=True)["step"])
     if (out / "best.pt").is_file():
         _export_best(out / "best.pt")
     print(

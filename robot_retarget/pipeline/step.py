@@ -198,17 +198,15 @@ class RootGlitches:
 
     def __init__(self) -> None:
         self._last: FloatArray | None = None
-        self.shift = np.zeros(3)
-        self.count = 0
+        self._shift = np.zeros(3)
 
     def __call__(self, root: FloatArray, dt_s: float) -> FloatArray:
         last, self._last = self._last, root.copy()
         if last is not None:
             jump = float(np.linalg.norm(root - last))
             if jump > _MIN_JUMP_M and jump > MAX_ROOT_SPEED_M_S * max(float(dt_s), 0.0):
-                self.shift -= root - last
-                self.count += 1
-        return np.asarray(root + self.shift, dtype=np.float64)
+                self._shift -= root - last
+        return np.asarray(root + self._shift, dtype=np.float64)
 
 
 def _checked_frame(

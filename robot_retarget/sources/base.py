@@ -192,7 +192,6 @@ class SequenceFilter:
         self._last_t: float | None = None
         self._streak = 0  # consecutive out_of_order drops
         self._left: tuple[int, float] | None = None  # the stream a restart left behind
-        self.second_sender = 0  # frames dropped as another sender's
 
     def _is_restart(self, seq: int, t_s: float) -> bool:
         if self._last_seq is None or self._last_t is None:
@@ -214,11 +213,11 @@ class SequenceFilter:
     def accept(self, seq: int, t_s: float) -> bool:
         if self._continues_left(seq, t_s):
             self._left = (seq, t_s)
-            self.second_sender += 1
             self._stats.drop("second_sender")
-            if self.second_sender == 3 or self.second_sender % (10 * self.warn_after) == 0:
+            dropped = self._stats.dropped["second_sender"]
+            if dropped == 3 or dropped % (10 * self.warn_after) == 0:
                 self._stats.warn(
-                    f"source: {self.second_sender} packets dropped from a second sender on this "
+                    f"source: {dropped} packets dropped from a second sender on this "
                     f"port (seq {seq} at t {t_s:.3f} s, while following seq {self._last_seq} at "
                     f"t {self._last_t:.3f} s): stop the other sender, or give each its own port"
                 )
