@@ -441,16 +441,10 @@ def clip_error(report: ClipReport) -> str:
     return error if error.startswith((f"{clip}:", f"{clip},")) else f"{clip}: {error}"
 
 
-def _lead_in(frames: int) -> str:
-    return f" ({frames} of them the lead-in's)" if frames else ""
-
-
-def _n(count: int, noun: str) -> str:
-    """``count`` and ``noun``, in the plural unless it is one ("1 frame", "2 frames")."""
-    return f"{count} {noun}{'' if count == 1 else 's'}"
-
-
 def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
+    # Here, not at the top: it loads the optimizer, and `convert --help` needs none.
+    from robot_retarget.pipeline.convert import clip_line, counted, lead_in_part
+
     ok = [r for r in reports if r.error is None]
     frames = sum(r.frames for r in ok)
     solved = sum(r.solved_frames for r in ok)  # the rate leaves out --lead-in's frames
@@ -463,22 +457,20 @@ def format_summary(reports: list[ClipReport], total_wall_s: float) -> str:
             lines.append(f"  FAILED {clip_error(r)}")
         else:
             lines.append(
-                f"  {r.out}: {_n(r.frames, 'frame')}{_lead_in(r.lead_in_frames)}, "
-                f"{r.wall_s:.2f} s ({r.solved_frames / max(r.wall_s, 1e-9):.0f} frames/s), "
-                f"limits {'respected' if r.limits_ok else 'VIOLATED'}, safety clipped "
-                f"{_n(r.clipped_commands, 'command')} ({_n(r.clipped_joints, 'joint value')}), "
-                f"{_n(r.fallbacks, 'solver fallback')}"
-            )
+                f"  {r.out}: "
+                + clip_line(r.frames, r.lead_in_frames, r.wall_s, r.limits_ok,
+                            r.clipped_commands, r.clipped_joints, r.fallbacks)
+            )  # fmt: skip
     if not ok:
         lines.append(f"  total: 0 of {len(reports)} clips converted")
         return "\n".join(lines)
     lines.append(
-        f"  total: {len(ok)} of {len(reports)} clips, {_n(frames, 'frame')}"
-        f"{_lead_in(frames - solved)}, wall time "
+        f"  total: {len(ok)} of {len(reports)} clips, {counted(frames, 'frame')}"
+        f"{lead_in_part(frames - solved)}, wall time "
         f"{total_wall_s:.2f} s, {solved / max(compute, 1e-9):.0f} frames/s, limits "
         f"{'respected' if all(r.limits_ok for r in ok) else 'VIOLATED'}, safety clipped "
-        f"{_n(sum(r.clipped_commands for r in ok), 'command')}, "
-        f"{_n(sum(r.fallbacks for r in ok), 'solver fallback')}"
+        f"{counted(sum(r.clipped_commands for r in ok), 'command')}, "
+        f"{counted(sum(r.fallbacks for r in ok), 'solver fallback')}"
     )
     warning = fallback_warning(sum(r.fallbacks for r in ok), solved)
     if warning is not None:

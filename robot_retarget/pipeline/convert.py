@@ -97,13 +97,40 @@ class ClipResult:
 
     def __str__(self) -> str:
         """What convert prints for a clip: frames, time, limits, clips and fallbacks."""
-        lead = f" ({self.lead_in_frames} of them the lead-in's)" if self.lead_in_frames else ""
-        limits = "respected" if self.limits.ok else f"VIOLATED ({self.limits})"
-        return (
-            f"{self.frames} frames{lead}, {self.wall_s:.2f} s, limits {limits}, safety clipped "
-            f"{self.safety_commands_clipped} commands ({self.safety_joint_clips} joint values), "
-            f"{self.fallbacks} solver fallbacks"
-        )
+        return clip_line(
+            self.frames, self.lead_in_frames, self.wall_s, self.limits.ok,
+            self.safety_commands_clipped, self.safety_joint_clips, self.fallbacks,
+        )  # fmt: skip
+
+
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, in the plural unless it is one ("1 frame", "2 frames")."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
+def lead_in_part(frames: int) -> str:
+    """How many of a clip's frames are its --lead-in's ("" for none)."""
+    return f" ({frames} of them the lead-in's)" if frames else ""
+
+
+def clip_line(
+    frames: int,
+    lead_in_frames: int,
+    wall_s: float,
+    limits_ok: bool,
+    clipped_commands: int,
+    clipped_joints: int,
+    fallbacks: int,
+) -> str:
+    """One converted clip as convert prints it (the rate leaves the lead-in's frames out)."""
+    solved = frames - lead_in_frames
+    return (
+        f"{counted(frames, 'frame')}{lead_in_part(lead_in_frames)}, {wall_s:.2f} s "
+        f"({solved / max(wall_s, 1e-9):.0f} frames/s), limits "
+        f"{'respected' if limits_ok else 'VIOLATED'}, safety clipped "
+        f"{counted(clipped_commands, 'command')} ({counted(clipped_joints, 'joint value')}), "
+        f"{counted(fallbacks, 'solver fallback')}"
+    )
 
 
 def convert_motion(
