@@ -63,6 +63,14 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 BLAS_THREADS_ENV = "OPENBLAS_NUM_THREADS"
 
 
+def _torch_missing(command: str | None, exc: ImportError) -> int:
+    """Exit 1 with the one-line answer if ``exc`` is torch missing; re-raise anything else."""
+    if not is_missing_torch(exc):
+        raise exc
+    print(f"error: {MissingTorchError(f'robot-retarget {command}', str(exc))}", file=sys.stderr)
+    return 1
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     # Before any command module imports numpy (OpenBLAS reads it once, when it loads).
     os.environ.setdefault(BLAS_THREADS_ENV, "1")
@@ -74,11 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         parser = build_parser(selected)
     except ImportError as exc:
-        if not is_missing_torch(exc):
-            raise
-        missing = MissingTorchError(f"robot-retarget {selected}", str(exc))
-        print(f"error: {missing}", file=sys.stderr)
-        return 1
+        return _torch_missing(selected, exc)
     args = parser.parse_args(args_list)
     if args.command is None:
         parser.print_help()
@@ -87,11 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return _load(module).run(args)
     except ImportError as exc:
-        if not is_missing_torch(exc):
-            raise
-        print(f"error: {MissingTorchError(f'robot-retarget {args.command}', str(exc))}",
-              file=sys.stderr)  # fmt: skip
-        return 1
+        return _torch_missing(args.command, exc)
     except RetargetError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1

@@ -30,6 +30,7 @@ from robot_retarget.nn.models.base import RetargetModel
 from robot_retarget.nn.models.registry import build_model
 from robot_retarget.nn.models.san import SAN
 from robot_retarget.npz_errors import is_numpy_archive
+from robot_retarget.runtime.loader import KEYPOINT_MODEL_PREFIX
 from robot_retarget.runtime.model import not_a_model
 from robot_retarget.skeleton.canonical import CANONICAL_JOINTS
 from robot_retarget.skeleton.skeleton import Skeleton
@@ -63,9 +64,6 @@ class LoadedModel:
         return self.model.name
 
 
-_KEYPOINT = "agnostic2d"  # the shipped keypoint models' names: agnostic2d, agnostic2d_clip…
-
-
 def shipped_checkpoints(directory: Path | None = None) -> dict[str, Path]:
     """Checkpoints shipped with the package (default :data:`CHECKPOINT_DIR`), by file stem."""
     directory = CHECKPOINT_DIR if directory is None else directory
@@ -78,7 +76,9 @@ def available_models() -> tuple[str, ...]:
     """Every name :func:`load_model` accepts (paths aside); the shipped 2D keypoint models
     (``agnostic2d*``) lift keypoints for ``--keypoint-model`` and are no retargeting model."""
     return BUILTIN_MODELS + tuple(
-        n for n in shipped_checkpoints() if n not in BUILTIN_MODELS and not n.startswith(_KEYPOINT)
+        n
+        for n in shipped_checkpoints()
+        if n not in BUILTIN_MODELS and not n.startswith(KEYPOINT_MODEL_PREFIX)
     )
 
 

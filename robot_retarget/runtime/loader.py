@@ -42,6 +42,11 @@ def shipped_runtimes(directory: Path | None = None) -> dict[str, Path]:
     return {p.stem: p for p in sorted(d.glob("*.npz"))} if d.is_dir() else {}
 
 
+KEYPOINT_MODEL_PREFIX = "agnostic2d"
+"""The shipped keypoint models' names start so (agnostic2d, agnostic2d_clip…): they lift 2D
+keypoints for --keypoint-model and are no retargeting model."""
+
+
 def _shipped_checkpoint_names() -> set[str]:
     """The torch checkpoints shipped with the package (they load only with torch)."""
     return {p.stem for p in CHECKPOINT_DIR.glob("*.pt")} if CHECKPOINT_DIR.is_dir() else set()
@@ -82,7 +87,7 @@ def load_runtime_model(name_or_path: str | os.PathLike[str]) -> RuntimeModel | L
         if not where.exists() and text not in _shipped_checkpoint_names():
             # Torch would not find it either: say so, not that torch is missing.
             names = sorted(
-                n for n in {*BUILTIN_RUNTIMES, *shipped} if not n.startswith("agnostic2d")
+                n for n in {*BUILTIN_RUNTIMES, *shipped} if not n.startswith(KEYPOINT_MODEL_PREFIX)
             )
             if len(where.parts) > 1 or where.suffix in (".pt", ".npz"):
                 raise ModelLoadError(f"{text}: no such file or folder", model=text) from None
