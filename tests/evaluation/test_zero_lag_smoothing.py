@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robot_retarget.evaluation.live_corruption import CorruptedStream, corrupt_stream
-from robot_retarget.evaluation.zero_lag_smoothing import gaussian_weights, zero_lag_smoothed
+from robot_retarget.evaluation.zero_lag_smoothing import GaussianKernel, zero_lag_smoothed
 from robot_retarget.motion.synthetic import demo_motion
 from robot_retarget.skeleton.canonical import CANONICAL_PARENTS
 
@@ -36,21 +36,21 @@ def _bone_angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 )
 def test_weights_are_centred_and_sum_to_one(times: list[float], sigma: float) -> None:
     t = np.cumsum(times)
-    w = gaussian_weights(t, sigma)
+    w = GaussianKernel(t, sigma).dense()
     assert np.allclose(w.sum(axis=1), 1.0)
     assert (w >= 0.0).all()
     # Centred: each frame weighs another by its time distance alone, before or after alike.
     d = (t[:, None] - t[None, :]) / sigma
     expected = np.where(np.abs(d) <= 4.0 + 1e-9, np.exp(-0.5 * d * d), 0.0)
     assert np.allclose(w / np.diag(w)[:, None], expected)
-    even = gaussian_weights(np.arange(41) * 0.01, 0.03)
+    even = GaussianKernel(np.arange(41) * 0.01, 0.03).dense()
     assert np.allclose(even[20, :20], even[20, 21:][::-1])
 
 
 def test_a_bad_sigma_is_refused() -> None:
     for bad in (0.0, -0.01, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="sigma"):
-            gaussian_weights(np.arange(3.0), bad)
+            GaussianKernel(np.arange(3.0), bad)
 
 
 def test_it_removes_jitter_without_lag_and_keeps_the_bones() -> None:
