@@ -369,31 +369,16 @@ def run(args: argparse.Namespace) -> int:
             f"does not use {'it' if len(given) == 1 else 'them'} (drop "
             f"{'it' if len(given) == 1 else 'them'}, or pass --model agnostic2d)"
         )
-    subjects = tuple(s for s in args.val_subjects.split(",") if s)
     robots = tuple(r for r in args.robots.split(",") if r)
     asked = TrainConfig(
         model=args.model,
-        data_dir=args.data,
-        out_dir=args.out,
-        steps=args.steps,
-        batch_size=args.batch_size,
-        window_frames=args.window,
-        fps=args.fps,
-        validation_subjects=subjects,
+        **_run_settings(args),
         robots=robots,
-        val_every=args.val_every,
         checkpoint_every=args.checkpoint_every,
         log_every=args.log_every,
-        seed=args.seed,
-        device=args.device,
-        lr=args.lr,
-        model_config=_model_config(args.model_config),
         discriminator_config=_model_config(args.disc_config),
         loss_weights=_model_config(args.loss_weight, "--loss-weight"),
         same_skeleton_recon=args.same_skeleton_recon,
-        max_frames=args.max_frames,
-        cache_dir=args.cache_dir,
-        exclude_subjects=tuple(s for s in args.exclude_subjects.split(",") if s),
         live_noise=args.live_noise,
     )
     if args.resume and Path(args.out, "config.json").is_file():
@@ -463,6 +448,28 @@ def run(args: argparse.Namespace) -> int:
         )
     )
     return 0
+
+
+def _run_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The settings every kind of run reads the same way from the command line (the
+    retargeting networks' TrainConfig and the keypoint model's KeypointTrainConfig)."""
+    return {
+        "data_dir": args.data,
+        "out_dir": args.out,
+        "steps": args.steps,
+        "batch_size": args.batch_size,
+        "window_frames": args.window,
+        "fps": args.fps,
+        "validation_subjects": tuple(s for s in args.val_subjects.split(",") if s),
+        "exclude_subjects": tuple(s for s in args.exclude_subjects.split(",") if s),
+        "val_every": args.val_every,
+        "seed": args.seed,
+        "lr": args.lr,
+        "model_config": _model_config(args.model_config),
+        "max_frames": args.max_frames,
+        "cache_dir": args.cache_dir,
+        "device": args.device,
+    }
 
 
 def _checkpointed_step(out: Path) -> int | None:
@@ -593,21 +600,7 @@ def _run_agnostic2d(args: argparse.Namespace) -> int:
         triplet_weight=float(weights.get("triplet", 0.1)),
         direction_weight=float(weights.get("direction", 1.0)),
         limb_weight=float(weights.get("limb", 0.0)),
-        data_dir=args.data,
-        out_dir=args.out,
-        steps=args.steps,
-        batch_size=args.batch_size,
-        window_frames=args.window,
-        fps=args.fps,
-        validation_subjects=tuple(s for s in args.val_subjects.split(",") if s),
-        exclude_subjects=tuple(s for s in args.exclude_subjects.split(",") if s),
-        val_every=args.val_every,
-        seed=args.seed,
-        lr=args.lr,
-        model_config=_model_config(args.model_config),
-        max_frames=args.max_frames,
-        cache_dir=args.cache_dir,
-        device=args.device,
+        **_run_settings(args),
         loader_workers=args.loader_workers,
         causal_probability=args.causal_probability,
         init_from=args.init_from,
