@@ -43,7 +43,7 @@ from robot_retarget.hardware.control_table import (
     error_bit_names,
 )
 from robot_retarget.hardware.goal_packet import GoalPacket
-from robot_retarget.hardware.safety import UnsafeCommandError
+from robot_retarget.hardware.safety import CLOCK_BUDGET_PERIODS, UnsafeCommandError
 from robot_retarget.hardware.servo_registers import (
     RegisterFinding,
     RegisterMismatchError,
@@ -87,8 +87,9 @@ class NotConnectedError(HardwareError):
 # Rounding slack for the joint-limit check: commands come from float64 math on the limits.
 _LIMIT_TOL_RAD = 1e-9
 # The backend's clock budget saves up this many control periods of each joint's velocity limit:
-# twice the SafetyLayer's (CLOCK_BUDGET_PERIODS), so behind one it never refuses a step.
-_BACKEND_BUDGET_PERIODS = 4.0
+# twice the SafetyLayer's, so behind one it never refuses a step (the slack covers the time
+# between the layer's clamp and the backend's write).
+BACKEND_BUDGET_PERIODS = 2.0 * CLOCK_BUDGET_PERIODS
 _REST_TOL_RAD = 0.02
 """A joint found this far past a limit before torque on (1.1°: a few ticks of sag onto a
 stop) is held at the limit; farther is refused (the config or the robot is wrong)."""
@@ -225,7 +226,7 @@ class DynamixelBackend(JointBackend):
         # Its own clock budget, as the SafetyLayer's but twice as deep: a backend used without
         # one is refused commands that move faster than the time between them allows.
         self._budget = VelocityBudget(  # set_command_period, set_command_clock
-            config.max_velocity, _BACKEND_BUDGET_PERIODS * self._command_period_s, time.monotonic
+            config.max_velocity, BACKEND_BUDGET_PERIODS * self._command_period_s, time.monotonic
         )
         self._old_handlers: dict[int, Any] = {}
         self.last_packets: dict[str, bytes] = {}  # bus name → last goal Sync Write sent
@@ -472,13 +473,17 @@ class DynamixelBackend(JointBackend):
         per_step = np.maximum(speed * dt_s - self.units.rad_per_tick, 0.25 * speed * dt_s)
         steps = max(1, math.ceil(float(np.max(np.abs(delta) / per_step))))
         start = self._last_q.copy()
-        t0 = time.monotonic()
+        # Each step a period after the one before was sent: a ramp that fell behind (a busy
+        # machine) goes on at its speed, it does not send the steps it is late for at once.
+        sent_s: float | None = None
         for k in range(1, steps + 1):
+            if sent_s is not None:
+                wait_s = sent_s + dt_s - time.monotonic()
+                if wait_s > 0.0:
+                    self._sleep(wait_s)
             q = start + delta * (k / steps)
+            sent_s = time.monotonic()
             self._send_now(q, self._ticks_from_rad(q))
-            wait_s = t0 + k * dt_s - time.monotonic()
-            if wait_s > 0.0 and k < steps:
-                self._sleep(wait_s)
         self._budget.fill()  # the ramp went at its own pace: the stream starts afresh
 
     # ----- streaming ---------------------------------------------------------------------------
@@ -525,7 +530,7 @@ class DynamixelBackend(JointBackend):
         if not (math.isfinite(period_s) and period_s > 0.0):
             raise ValueError(f"period_s must be a positive number of seconds, got {period_s}")
         self._command_period_s = period_s
-        self._budget.resize(_BACKEND_BUDGET_PERIODS * period_s)
+        self._budget.resize(BACKEND_BUDGET_PERIODS * period_s)
 
     def set_command_clock(self, clock: Callable[[], float]) -> None:
         self._budget.clock = clock

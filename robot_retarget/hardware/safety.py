@@ -57,10 +57,12 @@ class ClipStats:
     per_joint: dict[str, int] = field(default_factory=dict)
 
 
-CLOCK_BUDGET_PERIODS = 2.0
-"""How much of each joint's velocity limit the clock budget saves up: two control periods'
-worth, so a tick that ran late and the early one after it (the loop keeps its schedule) keep
-their full steps, while commands sent faster than real time get only the time that passed."""
+CLOCK_BUDGET_PERIODS = 3.0
+"""How much of each joint's velocity limit the clock budget saves up: three control periods'
+worth. The control loop keeps its schedule and runs a tick up to two periods late before it
+skips one (a tick more than a period late is followed at once by the next), and those ticks
+keep their full steps; commands sent faster than real time get only the time that passed. Two
+periods' worth held a loop's steps back whenever a sleep overshot by more than a period."""
 
 
 class SafetyLayer(JointBackend):

@@ -4,8 +4,8 @@ Command stamps are the caller's word; this is the clock's. Each joint's budget f
 velocity limit as the clock runs, up to ``depth_s`` seconds' worth, and every step spends from
 it: commands sent faster than real time get only the time that passed, while a loop at its
 rate, whose late tick is followed by an early one, keeps its full steps. The safety layer
-clamps to it (two periods deep); the Dynamixel backend, used without one, refuses what goes
-past its own (four periods deep).
+clamps to it (three periods deep); the Dynamixel backend, used without one, refuses what goes
+past its own (twice as deep).
 """
 
 from __future__ import annotations

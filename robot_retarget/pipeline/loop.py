@@ -344,14 +344,8 @@ class ControlLoop:
             if now - last_report >= s.report_every_s:
                 last_report = now
                 self.report(self.stats.snapshot(self.source.stats).line())
-            next_tick += self.period_s
-            self._k += 1
-            after = self.clock()
-            if after > next_tick + self.period_s:
-                missed = int((after - next_tick) / self.period_s)
-                self.stats.overruns += missed
-                next_tick += missed * self.period_s
-                self._k += missed
+            next_tick, missed = self._next_tick(next_tick)
+            self.stats.overruns += missed
             wait = next_tick - self.clock()
             if wait > 0:
                 woke = None
@@ -367,6 +361,19 @@ class ControlLoop:
                         self.sleep(gap)
                     early = True
                     next_tick = self.clock()  # the schedule restarts at this tick
+
+    def _next_tick(self, next_tick: float) -> tuple[float, int]:
+        """When the tick after the one due at ``next_tick`` is due, and how many ticks were
+        skipped to get there. A tick less than a period late is followed by the next at once
+        (the schedule holds); a loop further behind skips the ticks it missed rather than send
+        them back to back. So at most two ticks' steps come within one period, which the
+        safety layer's clock budget (CLOCK_BUDGET_PERIODS deep) takes in full."""
+        next_tick += self.period_s
+        self._k += 1
+        behind = self.clock() - next_tick
+        missed = int(behind / self.period_s) if behind > self.period_s else 0
+        self._k += missed
+        return next_tick + missed * self.period_s, missed
 
     def _tick(self, now: float, interp: FrameInterpolator, silence_s: float) -> None:
         s = self.settings
@@ -467,8 +474,7 @@ class ControlLoop:
         while np.any(np.abs(goal - self._q_cmd) >= self._reach_tol) and self.clock() < deadline:
             q = toward(self._q_cmd, goal, self._ramp_step)
             self._send(q, self.clock(), float("nan"), self._ramp_step)
-            next_tick += self.period_s
-            self._k += 1
+            next_tick, _ = self._next_tick(next_tick)
             wait = next_tick - self.clock()
             if wait > 0:
                 self.sleep(wait)

@@ -112,7 +112,11 @@ def test_keypoint_packets_drive_the_simulator(
     out = capsys.readouterr()
     assert "source: 90 received, 90 accepted, 0 dropped" in out.out
     assert "image planes: camera estimated at" in out.out
-    assert "safety: 0 of" in out.out
+    # Nothing past a limit or a stamp's step. Steps held to the wall clock are not asserted:
+    # on a loaded machine they are the safety layer doing its job (tests/pipeline/
+    # test_loop_under_load.py pins that a loop at its rate is never held back).
+    assert "(0 joint limit clips" in out.out
+    assert "; 0 velocity clips" in out.out
     # The performer's arm movements reached the robot (not a robot held in one pose).
     late = np.asarray(traj.q)[len(traj.q) // 2 :]
     assert float(np.ptp(late, axis=0).max()) > 0.2

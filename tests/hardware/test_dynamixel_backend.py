@@ -14,6 +14,7 @@ from robot_retarget.errors import CommunicationError, HardwareError, ServoFaultE
 from robot_retarget.hardware import protocol as p
 from robot_retarget.hardware.bus import DynamixelBus
 from robot_retarget.hardware.dynamixel_backend import (
+    BACKEND_BUDGET_PERIODS,
     DynamixelBackend,
     ModelMismatchError,
     NotConnectedError,
@@ -166,6 +167,38 @@ def test_torque_on_only_with_a_velocity_limited_move(
         if p.parse_v2(r).code == p.INST_SYNC_WRITE
     ]
     assert order.index(p.le_bytes(64, 2)) > order.index(p.le_bytes(116, 2))
+
+
+def test_a_ramp_that_falls_behind_does_not_send_its_late_steps_at_once(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
+) -> None:
+    """The torque-on move on a busy machine: one of its sleeps lasts ten periods. The steps
+    after it still come a period apart (before, the eight it was late for went out back to
+    back, and the servo saw one jump of eight steps)."""
+    period = 1.0 / op3.control_rate_hz
+    naps: list[float] = []
+
+    def busy_sleep(dt_s: float) -> None:
+        naps.append(dt_s)
+        time.sleep(dt_s + (10 * period if len(naps) == 3 else 0.0))
+
+    target = op3.init_pose.copy()
+    target[0] = np.clip(target[0] + 0.5, op3.lower[0], op3.upper[0])
+    backend = DynamixelBackend(op3, make_buses(op3, op3_sim), sleep=busy_sleep)
+    sent: list[float] = []
+    send_now = backend._send_now
+
+    def timed_send_now(q: np.ndarray, ticks: np.ndarray | None = None) -> np.ndarray:
+        sent.append(time.monotonic())
+        return send_now(q, ticks)
+
+    backend._send_now = timed_send_now  # type: ignore[method-assign]
+    with backend:
+        backend.send(JointCommand(target, 0.0))
+    ramp = np.diff(sent[:-1])  # the last: the command itself, once the ramp is there
+    assert len(ramp) > 12
+    # Half a period: the times are read beside the backend's own, not by it (0.2 ms before).
+    assert ramp.min() >= 0.5 * period
 
 
 def test_command_outside_limits_never_reaches_the_wire(
@@ -472,8 +505,8 @@ def test_commands_faster_than_real_time_are_refused_without_a_safety_layer(
     op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
 ) -> None:
     """Each command within a period's reach, stamped a period apart, but sent with no time
-    between them: the backend alone lets its clock budget (four periods' worth) go, then
-    refuses, sends nothing and switches torque off."""
+    between them: the backend alone lets its clock budget (BACKEND_BUDGET_PERIODS' worth) go,
+    then refuses, sends nothing and switches torque off."""
     sim = next(iter(op3_sim.values()))
     clock = FakeClock()
     shoulder = op3.joint_index("r_sho_pitch")
@@ -483,12 +516,13 @@ def test_commands_faster_than_real_time_are_refused_without_a_safety_layer(
         backend.set_command_clock(clock.now)
         q = op3.init_pose.copy()
         backend.send(JointCommand(q, 0.0))  # torque on where the servos are, then a ramp
-        for k in range(1, 5):  # four periods' worth: taken
+        taken = int(BACKEND_BUDGET_PERIODS / 0.9)  # 0.9 of a period's reach each: taken
+        for k in range(1, taken + 1):
             q[shoulder] += sign * reach
             backend.send(JointCommand(q, k / op3.control_rate_hz))
         q[shoulder] += sign * reach
         with pytest.raises(UnsafeCommandError, match="faster than real time") as info:
-            backend.send(JointCommand(q, 5 / op3.control_rate_hz))
+            backend.send(JointCommand(q, (taken + 1) / op3.control_rate_hz))
         assert info.value.joints == ("r_sho_pitch",)
         sim.settle()
         assert not any(s.torque_on for s in sim.servos.values())

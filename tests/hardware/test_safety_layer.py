@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from robot_retarget.errors import HardwareError
-from robot_retarget.hardware.safety import SafetyLayer, UnsafeCommandError
+from robot_retarget.hardware.safety import CLOCK_BUDGET_PERIODS, SafetyLayer, UnsafeCommandError
 from robot_retarget.hardware.types import JointCommand
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.sim.backend import SimBackend
@@ -127,7 +127,7 @@ def test_commands_sent_faster_than_their_stamps_are_held_to_the_time_that_passed
 ) -> None:
     """A trajectory played in a loop that does not wait: stamps a period apart, a tenth of a
     period between the calls. Each joint moves no further than its velocity limit allows in
-    the time that passed (plus the budget's two periods), however the commands are stamped."""
+    the time that passed (plus the budget's periods), however the commands are stamped."""
     clock = FakeClock()
     inner = SimBackend(op3, realtime=False, clock=clock.now)
     safe = SafetyLayer(op3, inner, clock=clock.now)
@@ -140,7 +140,7 @@ def test_commands_sent_faster_than_their_stamps_are_held_to_the_time_that_passed
         clock.t += period / 10
         safe.send(JointCommand(target, k * period))
     moved = np.abs(np.array(inner.sent[-1].q) - start)
-    allowed = op3.max_velocity * (clock.t - t0 + 2 * period) + 1e-9
+    allowed = op3.max_velocity * (clock.t - t0 + CLOCK_BUDGET_PERIODS * period) + 1e-9
     assert (moved <= allowed).all()
     # Stamps alone would have let each joint go ten times as far, or all the way.
     reach = np.minimum(np.abs(target - start), op3.max_velocity * 100 * period)
@@ -175,7 +175,7 @@ def test_no_window_of_time_sees_more_than_the_velocity_limit(
     op3: RobotConfig, data: st.DataObject
 ) -> None:
     """Whatever the stamps and the time between calls: between any two commands a joint moves
-    at most v_max · (the time that passed + the budget's two periods), and each command at most
+    at most v_max · (the time that passed + the budget's periods), and each command at most
     v_max · (its stamp step, at most a period)."""
     clock = FakeClock()
     inner = SimBackend(op3, realtime=False, clock=clock.now)
@@ -197,7 +197,8 @@ def test_no_window_of_time_sees_more_than_the_velocity_limit(
         qs.append(sent)
     for i in range(len(qs)):
         for j in range(i + 1, len(qs)):
-            allowed = op3.max_velocity * (times[j] - times[i] + 2 * period) + 1e-9
+            allowed = op3.max_velocity * (times[j] - times[i] + CLOCK_BUDGET_PERIODS * period)
+            allowed += 1e-9
             assert (np.abs(qs[j] - qs[i]) <= allowed).all()
 
 
