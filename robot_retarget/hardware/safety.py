@@ -19,6 +19,7 @@ it wrote last (the nearest tick could be one too far).
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -99,6 +100,9 @@ class SafetyLayer(JointBackend):
             self._budget = VelocityBudget(self.max_velocity, depth_s, clock)
         self._quantum = backend.position_quantum_rad
         self._prev_sent: FloatArray | None = None
+        # send() clamps against the last command sent and sends, as one step: two threads
+        # sending at once would each clamp against the same last command (1.4-5x the limit).
+        self._send_lock = threading.Lock()
         if self._quantum is not None:
             _check_ticks_per_period(config, self._quantum, self.period_s)
 
@@ -179,7 +183,10 @@ class SafetyLayer(JointBackend):
                         f"{self._prev_t!r} s: the step bound needs the time between commands; "
                         "nothing was sent (stamp each JointCommand with an increasing t_s)"
                     )
-                dt = min(cmd.t_s - self._prev_t, self.period_s)
+                # A period to float rounding is a period: stamps k / rate lose a few ulps, and
+                # a trajectory whose steps are exactly v_max / rate must not count as clipped.
+                gap = cmd.t_s - self._prev_t
+                dt = self.period_s if gap >= self.period_s * (1.0 - 1e-9) else gap
             bound = stamp_bound = self.max_velocity * dt
             if self._budget is not None:
                 bound = np.minimum(bound, self._budget.available())
@@ -217,13 +224,20 @@ class SafetyLayer(JointBackend):
             for n, c in zip(names, pos_clipped | moved, strict=True):
                 if c:
                     s.per_joint[n] += 1
-        if prev is not None and self._budget is not None:
-            self._budget.spend(np.abs(q_safe - prev))
-        self._prev_q = q_safe
-        self._prev_t = cmd.t_s
         if bound is not None and max_step is not None:
             bound = np.minimum(bound, max_step)
-        return JointCommand(self._on_the_grid(q_safe, bound), cmd.t_s)
+        last_sent = self._prev_sent
+        sent = self._on_the_grid(q_safe, bound)
+        if prev is not None and self._budget is not None:
+            travel = np.abs(q_safe - prev)
+            if last_sent is not None and self._quantum is not None:
+                # The servos move by whole ticks: a joint dithering across a tick's edge
+                # travels a tick a command there, which the backend's own budget counts.
+                travel = np.maximum(travel, np.abs(sent - last_sent))
+            self._budget.spend(travel)
+        self._prev_q = q_safe
+        self._prev_t = cmd.t_s
+        return JointCommand(sent, cmd.t_s)
 
     def _on_the_grid(self, q_safe: FloatArray, bound: FloatArray | None) -> FloatArray:
         """What a backend that rounds to ticks will write, kept within ``bound`` of what it
@@ -247,7 +261,9 @@ class SafetyLayer(JointBackend):
         return sent
 
     def send(self, cmd: JointCommand) -> JointCommand:
-        return self.backend.send(self.clamp(cmd))
+        """Clamp ``cmd`` and send it; callers on several threads are taken one at a time."""
+        with self._send_lock:
+            return self.backend.send(self.clamp(cmd))
 
     def report(self) -> str:
         """One line per fact, for the CLI / logs."""

@@ -204,6 +204,7 @@ class ControlLoop:
         self._dt_s = self.period_s
         self._stamp_shift_s = 0.0
         self.early_ticks = 0
+        self._next_due = -math.inf  # when the stream's next tick is due
 
     # ----------------------------------------------------------------------------- helpers
     def _set_mode(self, mode: Mode, now: float, why: str) -> None:
@@ -345,6 +346,7 @@ class ControlLoop:
                 last_report = now
                 self.report(self.stats.snapshot(self.source.stats).line())
             next_tick, missed = self._next_tick(next_tick)
+            self._next_due = next_tick  # where a smooth stop takes the schedule over
             self.stats.overruns += missed
             wait = next_tick - self.clock()
             if wait > 0:
@@ -470,11 +472,18 @@ class ControlLoop:
         self._set_mode(Mode.STOPPING, now, "moving to the safe pose, then torque off")
         deadline = now + self.settings.stop_timeout_s
         goal = self.config.safe_pose
-        next_tick = now
+        # The stream's schedule goes on: its next tick may be almost a period away (a late tick
+        # and the one after it just went out), and the first stop step waits for it.
+        next_tick = max(now, self._next_due)
+        full_step = self.config.max_velocity * self.period_s
+        step = self._ramp_step
         while np.any(np.abs(goal - self._q_cmd) >= self._reach_tol) and self.clock() < deadline:
-            q = toward(self._q_cmd, goal, self._ramp_step)
-            self._send(q, self.clock(), float("nan"), self._ramp_step)
-            next_tick, _ = self._next_tick(next_tick)
             wait = next_tick - self.clock()
             if wait > 0:
                 self.sleep(wait)
+            q = toward(self._q_cmd, goal, step)
+            self._send(q, self.clock(), float("nan"), step)
+            next_tick, missed = self._next_tick(next_tick)
+            # Ticks skipped on a busy machine: the next step covers their time too (never more
+            # than the velocity limit's period), so the stop keeps its speed and its deadline.
+            step = np.minimum(self._ramp_step * (1 + missed), full_step)

@@ -546,3 +546,30 @@ def test_behind_a_safety_layer_the_clock_budget_never_refuses(
             safe.send(JointCommand(q, k / op3.control_rate_hz))
         assert safe.stats.clock_clips > 0
         assert safe.backend.connected
+
+
+def test_behind_a_safety_layer_a_joint_dithering_across_a_tick_is_never_refused(
+    op3: RobotConfig, op3_sim: dict[str, SimulatedBus], make_buses: MakeBuses
+) -> None:
+    """Commands faster than real time that dither a joint across a tick's edge: each writes a
+    whole tick, which the backend's budget counts, so the layer counts it too (it had counted
+    the 2e-6 rad asked for, and the backend then refused a step the layer let through, torque
+    off)."""
+    clock = FakeClock()
+    backend = DynamixelBackend(op3, make_buses(op3, op3_sim))
+    safe = SafetyLayer(op3, backend, clock=clock.now)
+    period = 1.0 / op3.control_rate_hz
+    j = op3.joint_index("r_sho_pitch")
+    with safe:
+        q = np.array(safe.read_state().q)
+        safe.send(JointCommand(q, 0.0))  # torque on where the servos are
+        tick = float(backend.units.rad_per_tick[j])
+        edge = float(safe.rounded(q)[j]) + 0.5 * tick
+        n = int(BACKEND_BUDGET_PERIODS * op3.max_velocity[j] * period / tick) + 3
+        for k in range(1, n + 1):
+            q[j] = edge + (1e-6 if k % 2 else -1e-6)
+            safe.send(JointCommand(q, k * period))
+        q[j] = edge + 0.9 * op3.max_velocity[j] * period
+        safe.send(JointCommand(q, (n + 1) * period))  # held to the clock, not refused
+        assert safe.backend.connected
+        assert safe.stats.clock_clips > 0

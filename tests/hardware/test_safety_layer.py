@@ -68,7 +68,8 @@ def test_each_command_is_the_nearest_safe_one_and_every_clip_is_counted(
         q = prev + data.draw(arrays(np.float64, n, elements=st.floats(-3, 3)))
         t += data.draw(st.sampled_from([period, period / 3, 5 * period]))
         sent = safe.send(JointCommand(q, t)).q
-        dt = min(t - prev_t, period) if prev_t is not None else period
+        gap = t - prev_t if prev_t is not None else period
+        dt = period if gap >= period * (1 - 1e-9) else gap  # a period to float rounding
         step = op3.max_velocity * dt
         q_pos = np.clip(q, op3.lower, op3.upper)
         expected = np.clip(np.clip(q_pos, prev - step, prev + step), op3.lower, op3.upper)
@@ -227,3 +228,52 @@ def test_a_command_time_that_is_not_a_finite_number_is_refused(op3: RobotConfig)
             JointCommand(op3.init_pose, bad)
     with pytest.raises(ValueError, match="one value per joint"):  # still a ValueError too
         JointCommand(np.zeros((2, op3.num_joints)), 0.0)
+
+
+def test_a_trajectory_at_the_velocity_limit_stamped_k_over_rate_is_not_clipped(
+    op3: RobotConfig,
+) -> None:
+    """Stamps k / rate lose a few ulps far from 0; steps of exactly v_max / rate (what the
+    optimizer writes at a limb's top speed) were counted as clipped by 1e-16 rad."""
+    safe, inner = _layer(op3)
+    rate = op3.control_rate_hz
+    q = np.array(inner.read_state().q)
+    direction = np.where(q - op3.lower > op3.upper - q, -1.0, 1.0)
+    for k in range(1000, 1040):
+        q = np.clip(q + direction * op3.max_velocity / rate, op3.lower, op3.upper)
+        sent = safe.send(JointCommand(q, k / rate))
+        np.testing.assert_array_equal(sent.q, q)
+    assert safe.stats.commands_clipped == 0
+
+
+def test_two_threads_sending_at_once_are_taken_one_at_a_time(op3: RobotConfig) -> None:
+    """While one send is on its way to the servos, another waits: it is clamped against the
+    command that went out, not against the one before it."""
+    import threading
+
+    entered, release = threading.Event(), threading.Event()
+
+    class SlowBackend(SimBackend):
+        def send(self, cmd: JointCommand) -> JointCommand:
+            entered.set()
+            release.wait(5.0)
+            return super().send(cmd)
+
+    inner = SlowBackend(op3, realtime=False)
+    safe = SafetyLayer(op3, inner, clock=None)
+    safe.connect()
+    q = np.array(inner.read_state().q)
+    first = threading.Thread(target=safe.send, args=(JointCommand(q, 0.01),))
+    first.start()
+    assert entered.wait(5.0)
+    second = threading.Thread(target=safe.send, args=(JointCommand(q + 1.0, 0.02),))
+    second.start()
+    second.join(0.2)
+    assert second.is_alive()
+    assert safe.stats.commands == 1
+    release.set()
+    first.join(5.0)
+    second.join(5.0)
+    assert safe.stats.commands == 2
+    step = np.abs(np.array(inner.sent[-1].q) - np.array(inner.sent[-2].q))
+    assert (step <= op3.max_velocity * 0.01 + 1e-12).all()

@@ -5,6 +5,7 @@ budget: that budget is for callers that send faster than real time, and the loop
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ import pytest
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.nn.inference import LoadedModel
 from robot_retarget.optimize import Retargeter
-from robot_retarget.pipeline.loop import ControlLoop, LoopSettings
+from robot_retarget.pipeline.loop import ControlLoop, LoopSettings, Mode
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.sim.backend import SimBackend
@@ -64,3 +65,75 @@ def test_late_ticks_keep_their_full_steps(
     # ... and the clock never held one back.
     assert result.safety.clock_clips == 0, result.safety
     assert result.safety.commands_clipped == 0
+
+
+class LateThenInterrupted(FakeClock):
+    """Sleeps keep time until call ``late_at``, which overshoots by ``overshoot_s``; the sleep
+    after it is cut short by Ctrl-C (the loop's smooth stop then runs)."""
+
+    def __init__(self, late_at: int, overshoot_s: float) -> None:
+        super().__init__()
+        self.calls = 0
+        self.late_at = late_at
+        self.overshoot_s = overshoot_s
+
+    def sleep(self, dt_s: float) -> None:
+        self.calls += 1
+        if self.calls == self.late_at + 1:
+            raise KeyboardInterrupt
+        super().sleep(dt_s)
+        if self.calls == self.late_at:
+            self.t += self.overshoot_s
+
+
+def test_a_stop_right_after_a_late_tick_keeps_to_the_schedule(
+    op3: RobotConfig, copy_model: LoadedModel, retargeter: Retargeter, demo: HumanMotion
+) -> None:
+    """Ctrl-C in the sleep after a tick 1.9 periods late and the one sent at once after it: the
+    smooth stop's first step waits for the stream's next tick (it went out at once, and
+    joints at full speed were held back: 247 joint steps)."""
+    fast = dataclasses.replace(demo, fps=4 * demo.fps)
+    step = RetargetStep(op3, copy_model, fast.skeleton, retargeter=retargeter)
+    period = 1.0 / op3.control_rate_hz
+    clock = LateThenInterrupted(late_at=60, overshoot_s=1.9 * period)
+    backend = SimBackend(op3, clock=clock.now)
+    loop = ControlLoop(step, ScriptedSource(fast), backend, LoopSettings(ramp_speed_fraction=1.0),
+                       record=True, clock=clock.now, sleep=clock.sleep)  # fmt: skip
+    result = loop.run()
+    assert result.interrupted
+    assert result.safety.clock_clips == 0, result.safety
+
+
+def _slow_when_stopping(
+    loop: ControlLoop, clock: FakeClock, overshoot_s: float
+) -> Callable[[float], None]:
+    """A sleep that overshoots by ``overshoot_s`` once the loop is on its smooth stop."""
+
+    def sleep(dt_s: float) -> None:
+        clock.sleep(dt_s + (overshoot_s if loop.mode is Mode.STOPPING else 0.0))
+
+    return sleep
+
+
+def test_the_smooth_stop_keeps_its_speed_when_ticks_are_missed(
+    op3: RobotConfig, copy_model: LoadedModel, retargeter: Retargeter, demo: HumanMotion
+) -> None:
+    """Every sleep of the stop overshoots by three periods: the loop skips those ticks, and each
+    step it does send covers their time too, so the stop takes about as long as on an idle
+    machine (one step a tick sent had made it four times as slow, past its deadline)."""
+    period = 1.0 / op3.control_rate_hz
+    durations = []
+    for overshoot in (0.0, 3.0 * period):
+        step = RetargetStep(op3, copy_model, demo.skeleton, retargeter=retargeter)
+        clock = FakeClock()
+        backend = SimBackend(op3, clock=clock.now)
+        loop = ControlLoop(step, ScriptedSource(demo), backend, LoopSettings(duration_s=1.5),
+                           record=True, clock=clock.now, sleep=clock.sleep)  # fmt: skip
+        loop.sleep = _slow_when_stopping(loop, clock, overshoot)
+        result = loop.run()
+        stops = [e for e in result.log if e.mode is Mode.STOPPING]
+        np.testing.assert_allclose(stops[-1].q, op3.safe_pose, atol=1e-9)  # reached
+        durations.append(stops[-1].t_s - stops[0].t_s)
+        assert result.safety.clock_clips == 0
+    assert durations[0] > 0.3  # a real move (the demo's pose is not the safe pose)
+    assert durations[1] < durations[0] + 5 * period
