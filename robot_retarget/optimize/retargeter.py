@@ -235,6 +235,7 @@ class Retargeter:
         """
         q0 = self.config.init_pose if q is None else q
         start = check_array("start pose", q0, (self.num_joints,)).copy()
+        _check_single_turn(start, self.config.joint_names, "start pose")
         self._restart(start, start.copy(), np.clip(start, self.lower, self.upper))
 
     def _restart(self, q_prev: FloatArray, q_prev2: FloatArray, x0: FloatArray) -> None:
@@ -332,7 +333,9 @@ class Retargeter:
 
     def set_previous_command(self, q_prev: npt.ArrayLike) -> None:
         """Centre the next online solve's velocity box on ``q_prev`` (e.g. a measured pose)."""
-        self._q_prev = check_array("q_prev", q_prev, (self.num_joints,)).copy()
+        q = check_array("q_prev", q_prev, (self.num_joints,))
+        _check_single_turn(q, self.config.joint_names, "q_prev")
+        self._q_prev = q.copy()
 
     def history(self) -> tuple[FloatArray, FloatArray]:
         """(last command, the one before): the online problem's smoothness history. Read
@@ -649,3 +652,14 @@ class Retargeter:
             lo, hi = velocity_box(prev, self.lower, self.upper, step)
             self._final_check(q[t], lo, hi)
             prev = q[t]
+
+
+def _check_single_turn(q: FloatArray, names: tuple[str, ...], what: str) -> None:
+    """A pose no single-turn servo can be in (beyond ±2π rad) is in other units."""
+    far = np.abs(q) > 2.0 * np.pi
+    if far.any():
+        i = int(np.argmax(far))
+        raise SolveError(
+            f"{what}: {names[i]} is {q[i]:g} rad, more than a turn; joint angles are radians "
+            "(degrees? pass np.radians of them); no command was produced"
+        )

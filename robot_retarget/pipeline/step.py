@@ -7,6 +7,7 @@ simulator or a trajectory file) come after it, in the caller.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -15,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
-from robot_retarget.errors import InvalidMotionError
+from robot_retarget.errors import InvalidMotionError, SolveError
 from robot_retarget.optimize import Retargeter, SolveResult
 from robot_retarget.optimize.live_frame import LiveFrameSolver
 from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets
@@ -145,6 +146,7 @@ class RetargetStep:
         t0 = time.perf_counter()
         if settle and q_prev is not None:
             raise InvalidMotionError("settle starts a sequence: it takes no q_prev")
+        _check_frame_interval(dt_s)
         local_quats, root_pos = _checked_frame(local_quats, root_pos)
         root_pos = self._root_glitches(root_pos, dt_s)
         quats, root = self.online.step(local_quats, root_pos)
@@ -174,6 +176,26 @@ class RetargetStep:
             trunk_frame=trunk,
             solve=result,
             times_s=(t1 - t0, t2 - t1, t3 - t2),
+        )
+
+
+MAX_DT_S = 1.0
+"""The longest time between two frames a step takes (frame rates below 1 fps are refused
+everywhere): a longer one is almost always milliseconds given as seconds, and its velocity box
+would let the joints move that many seconds' worth at once (4.9x a joint's limit at 8.0)."""
+
+
+def _check_frame_interval(dt_s: float) -> None:
+    """Beyond :data:`MAX_DT_S`: a one-line error saying what to pass (the solver refuses what
+    is not a positive number of seconds)."""
+    try:
+        dt = float(dt_s)
+    except (TypeError, ValueError):
+        return
+    if dt > MAX_DT_S and math.isfinite(dt):
+        raise SolveError(
+            f"dt_s is {dt_s!r} s, more than {MAX_DT_S:g} s between two frames; it is in seconds "
+            f"(milliseconds? then pass {dt / 1000.0:g}); no command was produced"
         )
 
 

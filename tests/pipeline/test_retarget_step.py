@@ -162,3 +162,19 @@ def test_a_root_that_jumps_faster_than_any_performer_is_taken_out_of_the_root_tr
     for kind in ("glitch", "far", "stays"):  # without it: 9.3 m off after the 50 m glitch
         off = np.linalg.norm(runs[kind] - runs["clean"], axis=1)
         assert off.max() < 0.003, (kind, off.max())
+
+
+def test_units_a_user_mixes_up_are_refused(step: RetargetStep, demo: HumanMotion) -> None:
+    """Milliseconds as dt_s (the optimizer's steps went to 4.9x the velocity limit) and a start
+    pose in degrees (q came back at 15 rad): one-line errors that say what to pass."""
+    from robot_retarget.errors import SolveError
+
+    quats, root = demo.local_quats[0], demo.root_pos[0]
+    with pytest.raises(SolveError, match=r"milliseconds\? then pass 0.008"):
+        step(quats, root, 8.0)
+    with pytest.raises(SolveError, match=r"more than a turn.*radians"):
+        step.reset(np.degrees(step.config.init_pose) + 400.0)
+    with pytest.raises(SolveError, match=r"q_prev: .* more than a turn"):
+        step(quats, root, 0.008, q_prev=np.full(step.config.num_joints, 30.0))
+    step.reset()
+    assert np.isfinite(step(quats, root, 0.008).q).all()  # the step goes on
