@@ -132,3 +132,20 @@ def test_an_excess_within_the_tolerance_is_reported_as_none() -> None:
     assert (check.position_excess_rad, check.velocity_excess_rad) == (0.0, 0.0)
     q[1, 0] += 1e-6
     assert check_limits(config, q, 0.008).velocity_excess_rad == pytest.approx(1e-6, rel=1e-3)
+
+
+def test_the_readmes_live_loop_runs_as_written() -> None:
+    """The "Your own live loop" example, on a short clip: every command passes the safety
+    layer unchanged."""
+    import contextlib
+    import io
+    import re
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    code = next(b for b in re.findall(r"```python\n(.*?)```", readme, re.S) if "RetargetStep(" in b)
+    clip = Path(__file__).parent / "fixtures" / "motion" / "tiny_walk.bvh"
+    code = code.replace('"walk.bvh"', repr(str(clip)))
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        exec(compile(code, "README.md", "exec"), {})
+    assert "safety: 0 of 24 commands clipped" in printed.getvalue()

@@ -19,6 +19,7 @@ it wrote last (the nearest tick could be one too far).
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -32,6 +33,7 @@ from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.hardware.velocity_budget import VelocityBudget
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.loader import as_robot_config
 
 
 class UnsafeCommandError(HardwareError):
@@ -76,11 +78,12 @@ class SafetyLayer(JointBackend):
 
     def __init__(
         self,
-        config: RobotConfig,
+        config: RobotConfig | str | os.PathLike[str],
         backend: JointBackend,
         *,
         clock: Callable[[], float] | None = time.monotonic,
     ) -> None:
+        config = as_robot_config(config)
         self.config = config
         self.backend = backend
         self.lower = config.lower

@@ -153,6 +153,7 @@ class ControlLoop:
         mailbox: Mailbox[LiveFrame] | None = None,
     ) -> None:
         self.step = step
+        step.warn_conventions = False  # each source tells its own sender's conventions
         self.config = step.config
         self.source = source
         self.settings = settings or LoopSettings()

@@ -8,7 +8,9 @@ simulator or a trajectory file) come after it, in the caller.
 from __future__ import annotations
 
 import math
+import os
 import time
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -17,14 +19,17 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.errors import InvalidMotionError, SolveError
+from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.optimize import Retargeter, SolveResult
 from robot_retarget.optimize.live_frame import LiveFrameSolver
 from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.loader import as_robot_config
 from robot_retarget.runtime.loader import check_foot_lock, load_runtime_model, online_retargeter
 from robot_retarget.runtime.model import OnlineStep, RuntimeModel
 from robot_retarget.skeleton.skeleton import Skeleton
+from robot_retarget.sources.wire_sanity import WireSanity
 
 if TYPE_CHECKING:
     from robot_retarget.nn.inference import LoadedModel
@@ -62,16 +67,20 @@ class RetargetStep:
 
     def __init__(
         self,
-        config: RobotConfig,
+        config: RobotConfig | str | os.PathLike[str],
         model: RuntimeModel | LoadedModel | str,
-        source_skeleton: Skeleton,
+        source_skeleton: Skeleton | HumanMotion,
         *,
         retargeter: Retargeter | None = None,
         rate_hz: float | None = None,
         frame_program: bool = True,
         foot_lock: bool = False,
     ) -> None:
+        config = as_robot_config(config)
         self.config = config
+        # Warn of frames whose quaternions look x-y-z-w (the control loop's sources tell their
+        # senders' conventions themselves, and turn this off).
+        self.warn_conventions = True
         # The residual network's foot lock holds planted feet on its own output skeleton; on
         # the robot it costs direction error and jerk (cross-validated, README "Cross-validated
         # on the robot"), so the robot path leaves it out unless asked (--foot-lock).
@@ -99,11 +108,20 @@ class RetargetStep:
         self.settle_branches: tuple[int | None, ...] | None = None
         self.set_source(source_skeleton)
 
-    def set_source(self, source_skeleton: Skeleton) -> None:
-        """A new performer: fresh network state for their rest offsets (and root track).
+    def set_source(self, source_skeleton: Skeleton | HumanMotion) -> None:
+        """A new performer: fresh network state for their rest offsets (and root track); a
+        motion stands for its skeleton.
 
         Models with a numpy runtime (:mod:`robot_retarget.runtime`) run without torch; the
         others step through torch; the same numbers either way (tested)."""
+        if isinstance(source_skeleton, HumanMotion):
+            source_skeleton = source_skeleton.skeleton
+        if not isinstance(source_skeleton, Skeleton):
+            raise InvalidMotionError(
+                "the performer is a Skeleton (a HumanMotion's .skeleton, or "
+                f"robot_retarget.skeleton.canonical.default_canonical_skeleton()), got "
+                f"{type(source_skeleton).__name__}"
+            )
         self.online: OnlineStep = online_retargeter(
             self.model,
             source_skeleton.offsets,
@@ -112,6 +130,8 @@ class RetargetStep:
             foot_lock=self.foot_lock,
         )
         self._root_glitches = RootGlitches()
+        self._conventions = WireSanity()  # a caller's quaternions x-y-z-w, warned once
+        self._t_s = 0.0
 
     def warm_up(self, frames: int = 3) -> None:
         """A few network steps on the rest pose (the first torch call is slow), then a reset
@@ -128,6 +148,8 @@ class RetargetStep:
         self.retargeter.reset(q_start)
         self.stats = StepStats()
         self._root_glitches = RootGlitches()
+        self._conventions = WireSanity()
+        self._t_s = 0.0
 
     def __call__(
         self,
@@ -148,6 +170,12 @@ class RetargetStep:
             raise InvalidMotionError("settle starts a sequence: it takes no q_prev")
         _check_frame_interval(dt_s)
         local_quats, root_pos = _checked_frame(local_quats, root_pos)
+        self._t_s += float(dt_s)
+        tell = (
+            self._conventions.rotations(local_quats, self._t_s) if self.warn_conventions else None
+        )
+        if tell is not None:
+            warnings.warn(QUATERNION_ORDER_WARNING, ConventionWarning, stacklevel=2)
         root_pos = self._root_glitches(root_pos, dt_s)
         quats, root = self.online.step(local_quats, root_pos)
         t1 = time.perf_counter()
@@ -178,6 +206,17 @@ class RetargetStep:
             times_s=(t1 - t0, t2 - t1, t3 - t2),
         )
 
+
+class ConventionWarning(UserWarning):
+    """Frames that look sent with another convention than the API's (quaternions w-x-y-z)."""
+
+
+QUATERNION_ORDER_WARNING = (
+    "RetargetStep: for a second most local rotations have |w| < 0.5 (turned more than 120° "
+    "from the rest pose): are the quaternions x-y-z-w (scipy's Rotation.as_quat())? They are "
+    "w-x-y-z, scalar first, each joint's rotation from the canonical rest pose "
+    "(robot_retarget.skeleton.canonical)"
+)
 
 MAX_DT_S = 1.0
 """The longest time between two frames a step takes (frame rates below 1 fps are refused

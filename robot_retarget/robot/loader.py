@@ -164,6 +164,19 @@ def load_robot_config(name_or_path: str | os.PathLike[str]) -> RobotConfig:
     return parse_robot_config(text, path=path)
 
 
+def as_robot_config(robot: RobotConfig | str | os.PathLike[str]) -> RobotConfig:
+    """``robot`` as it is, or loaded from a bundled robot's name or a config's path: what the
+    API's classes take as their robot."""
+    if isinstance(robot, RobotConfig):
+        return robot
+    if isinstance(robot, (str, os.PathLike)):
+        return load_robot_config(robot)
+    raise ConfigError(
+        f"a robot is a RobotConfig (robot_retarget.load_robot), a bundled robot's name "
+        f"({', '.join(available_robots())}) or a config's path, got {type(robot).__name__}"
+    )
+
+
 def parse_robot_config(text: str, *, path: str | os.PathLike[str] | None = None) -> RobotConfig:
     """Validate YAML text (as in a config file) into a RobotConfig; ``path`` is for messages."""
     where = None if path is None else os.fspath(path)

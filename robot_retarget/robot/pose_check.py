@@ -29,4 +29,10 @@ def checked_pose(config: RobotConfig, q: npt.ArrayLike, what: str) -> FloatArray
             f"{what} is {pose[bad[0]]} for joint {config.joint_names[bad[0]]}: angles must be "
             "finite"
         )
+    far = np.flatnonzero(np.abs(pose) > 2.0 * np.pi)
+    if far.size:
+        raise InvalidMotionError(
+            f"{what} is {pose[far[0]]:g} for joint {config.joint_names[far[0]]}, more than a "
+            "turn: angles are radians (degrees? pass np.radians of them)"
+        )
     return pose

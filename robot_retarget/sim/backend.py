@@ -8,6 +8,7 @@ runs).
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 
@@ -18,6 +19,7 @@ from robot_retarget.errors import HardwareError
 from robot_retarget.hardware.backend import JointBackend
 from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.loader import as_robot_config
 from robot_retarget.robot.pose_check import checked_pose
 from robot_retarget.sim.kinematic import KinematicRobot
 
@@ -25,13 +27,14 @@ from robot_retarget.sim.kinematic import KinematicRobot
 class SimBackend(JointBackend):
     def __init__(
         self,
-        config: RobotConfig,
+        config: RobotConfig | str | os.PathLike[str],
         *,
         q0: FloatArray | None = None,
         time_constant_s: float = 0.01,
         realtime: bool = True,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        config = as_robot_config(config)
         self.config = config
         self.q0 = checked_pose(config, config.init_pose if q0 is None else q0, "q0")
         self.time_constant_s = time_constant_s

@@ -9,6 +9,7 @@ timeout is raised to ``packet_timeout_ms`` (20 ms) here.
 
 from __future__ import annotations
 
+import os
 from types import TracebackType
 
 import numpy as np
@@ -18,6 +19,7 @@ from robot_retarget.array_types import FloatArray
 from robot_retarget.hardware.bus import buses_from_config
 from robot_retarget.hardware.dynamixel_backend import DynamixelBackend
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.loader import as_robot_config
 from robot_retarget.robot.pose_check import checked_pose
 from robot_retarget.sim.dxl_bus import SimulatedBus, buses_for_robot
 
@@ -27,11 +29,12 @@ class SimulatedRobotBus:
 
     def __init__(
         self,
-        config: RobotConfig,
+        config: RobotConfig | str | os.PathLike[str],
         q_rad: npt.ArrayLike | None = None,
         *,
         packet_timeout_ms: float = 20.0,
     ) -> None:
+        config = as_robot_config(config)
         self.config = config
         q = checked_pose(config, config.init_pose if q_rad is None else q_rad, "q_rad")
         self.buses: dict[str, SimulatedBus] = buses_for_robot(config, q_rad=list(q))
