@@ -60,6 +60,10 @@ class ClipStats:
     per_joint: dict[str, int] = field(default_factory=dict)
 
 
+_ONE_TURN_RAD = 2.0 * np.pi
+"""A command beyond this is in other units (degrees): refused rather than clamped, which had
+driven every joint to a limit at full speed."""
+
 CLOCK_BUDGET_PERIODS = 3.0
 """How much of each joint's velocity limit the clock budget saves up: three control periods'
 worth. The control loop keeps its schedule and runs a tick up to two periods late before it
@@ -164,6 +168,15 @@ class SafetyLayer(JointBackend):
             raise UnsafeCommandError(
                 f"command has NaN/inf for joints {', '.join(joints)}; nothing was sent. Check "
                 "the retargeting stage's output",
+                joints=joints,
+            )
+        if (np.abs(q) > _ONE_TURN_RAD).any():
+            bad = np.abs(q) > _ONE_TURN_RAD
+            joints = tuple(n for n, b in zip(names, bad, strict=True) if b)
+            raise UnsafeCommandError(
+                f"command has {', '.join(joints)} beyond a turn ({float(q[bad][0]):g} rad): no "
+                "servo of a humanoid goes there, so the numbers are not radians (degrees? pass "
+                "np.radians of them); nothing was sent",
                 joints=joints,
             )
         # minimum(maximum(·)) is np.clip (inputs are finite here) without its wrapper's cost.

@@ -34,7 +34,7 @@ def test_no_command_ever_leaves_the_limits(op3: RobotConfig, data: st.DataObject
     prev = op3.init_pose.copy()
     t = 0.0
     for _ in range(data.draw(st.integers(1, 15))):
-        q = data.draw(arrays(np.float64, n, elements=st.floats(-50, 50)))
+        q = data.draw(arrays(np.float64, n, elements=st.floats(-6.28, 6.28)))
         step = data.draw(st.sampled_from([period, period / 3, 5 * period, 0.0, -1.0]))
         if step <= 0.0 and inner.sent:  # a time that does not advance: refused, nothing sent
             before = len(inner.sent)
@@ -277,3 +277,18 @@ def test_two_threads_sending_at_once_are_taken_one_at_a_time(op3: RobotConfig) -
     assert safe.stats.commands == 2
     step = np.abs(np.array(inner.sent[-1].q) - np.array(inner.sent[-2].q))
     assert (step <= op3.max_velocity * 0.01 + 1e-12).all()
+
+
+def test_a_command_beyond_a_turn_is_refused_as_other_units(op3: RobotConfig) -> None:
+    """Degrees given as radians: clamping them had driven every joint to a limit at full speed,
+    reported only as position clips. Refused by name; nothing sent; the layer goes on."""
+    safe, inner = _layer(op3)
+    before = len(inner.sent)
+    degrees = np.degrees(op3.init_pose)
+    with pytest.raises(UnsafeCommandError, match=r"beyond a turn .*degrees\?") as info:
+        safe.send(JointCommand(degrees, 0.01))
+    far = np.abs(degrees) > 2 * np.pi
+    assert far.any()
+    assert info.value.joints == tuple(n for n, f in zip(op3.joint_names, far, strict=True) if f)
+    assert len(inner.sent) == before
+    safe.send(JointCommand(op3.init_pose, 0.02))
