@@ -27,6 +27,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "load_model": ("robot_retarget.runtime.loader", "load_runtime_model"),
     "Retargeter": ("robot_retarget.optimize.retargeter", "Retargeter"),
     "RetargetStep": ("robot_retarget.pipeline.step", "RetargetStep"),
+    "PositionsToRotations": ("robot_retarget.sources.from_positions", "PositionsToRotations"),
     "RobotTrajectory": ("robot_retarget.motion.trajectory", "RobotTrajectory"),
     "JointCommand": ("robot_retarget.hardware.types", "JointCommand"),
     "SafetyLayer": ("robot_retarget.hardware.safety", "SafetyLayer"),
@@ -40,6 +41,7 @@ __all__ = [
     "DynamixelBackend",
     "HumanMotion",
     "JointCommand",
+    "PositionsToRotations",
     "RetargetError",
     "RetargetResult",
     "RetargetStep",
@@ -73,6 +75,7 @@ if TYPE_CHECKING:
     from robot_retarget.runtime.loader import load_runtime_model as load_model
     from robot_retarget.sim.backend import SimBackend
     from robot_retarget.sim.robot_bus import SimulatedRobotBus
+    from robot_retarget.sources.from_positions import PositionsToRotations
 
 
 def __getattr__(name: str) -> Any:

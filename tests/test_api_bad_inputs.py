@@ -82,3 +82,23 @@ def test_quaternions_sent_x_y_z_w_are_warned_of_once() -> None:
         assert len(tells) == warned
         if warned:
             assert "x-y-z-w" in str(tells[0].message)
+
+
+def test_joint_positions_go_in_through_the_exported_solver() -> None:
+    """A pose estimator's 22 canonical joint positions → rotations for RetargetStep; a wrong
+    shape, a NaN and a frame of the wrong joint count are RetargetErrors (they were ValueErrors
+    from inside the network, or a NaN taken in)."""
+    from robot_retarget.motion.synthetic import demo_motion
+
+    motion = demo_motion(fps=30.0).frames(0, 2)
+    solver = rr.PositionsToRotations()  # the canonical skeleton's proportions
+    local, root = solver.solve(motion.positions()[0])
+    step = rr.RetargetStep("op3", "copy", solver.skeleton)
+    step.reset()
+    assert np.isfinite(step(local, root, 1 / 30).q).all()
+    with pytest.raises(rr.RetargetError, match=r"shape \(22, 3\), got \(17, 3\)"):
+        solver.solve(np.zeros((17, 3)))
+    with pytest.raises(rr.RetargetError, match="NaN"):
+        solver.solve(np.full((22, 3), np.nan))
+    with pytest.raises(rr.RetargetError, match="21 rows, the performer's skeleton 22 joints"):
+        step(local[:21], root, 1 / 30)

@@ -130,6 +130,7 @@ class RetargetStep:
             foot_lock=self.foot_lock,
         )
         self._root_glitches = RootGlitches()
+        self._source_joints = len(source_skeleton.names)
         self._conventions = WireSanity()  # a caller's quaternions x-y-z-w, warned once
         self._t_s = 0.0
 
@@ -170,6 +171,13 @@ class RetargetStep:
             raise InvalidMotionError("settle starts a sequence: it takes no q_prev")
         _check_frame_interval(dt_s)
         local_quats, root_pos = _checked_frame(local_quats, root_pos)
+        if local_quats.shape[0] != self._source_joints:
+            raise InvalidMotionError(
+                f"local_quats has {local_quats.shape[0]} rows, the performer's skeleton "
+                f"{self._source_joints} joints (the canonical 22 in the order of "
+                "robot_retarget.skeleton.canonical.CANONICAL_JOINTS, unless set_source gave "
+                "another); the frame is refused"
+            )
         self._t_s += float(dt_s)
         tell = (
             self._conventions.rotations(local_quats, self._t_s) if self.warn_conventions else None

@@ -17,8 +17,14 @@ import numpy.typing as npt
 
 from robot_retarget.array_types import FloatArray
 from robot_retarget.casadi_jit import CompiledFunction
+from robot_retarget.errors import InvalidMotionError
 from robot_retarget.geometry import quaternion as quat
-from robot_retarget.skeleton.canonical import CANONICAL_JOINTS, CANONICAL_PARENTS, Joint
+from robot_retarget.skeleton.canonical import (
+    CANONICAL_JOINTS,
+    CANONICAL_PARENTS,
+    Joint,
+    default_canonical_skeleton,
+)
 from robot_retarget.skeleton.position_solve_spec import (
     EPS,
     MIN_SECONDARY_M,
@@ -50,11 +56,15 @@ def _frame(primary: FloatArray, secondary: FloatArray) -> FloatArray | None:
 
 
 class PositionsToRotations:
-    """Solves local rotations on ``skeleton`` (canonical joints) from global positions."""
+    """Solves local rotations on ``skeleton`` (canonical joints; default the canonical
+    skeleton's proportions) from global positions: what a pose estimator or tracker gives,
+    ready for :class:`robot_retarget.pipeline.step.RetargetStep`."""
 
-    def __init__(self, skeleton: Skeleton) -> None:
+    def __init__(self, skeleton: Skeleton | None = None) -> None:
+        if skeleton is None:
+            skeleton = default_canonical_skeleton()
         if skeleton.names != CANONICAL_JOINTS:
-            raise ValueError("PositionsToRotations needs a canonical 22-joint skeleton")
+            raise InvalidMotionError("PositionsToRotations needs a canonical 22-joint skeleton")
         self.skeleton = skeleton
         self._rest = skeleton.rest_positions()
         self._child = single_children(CANONICAL_PARENTS)
@@ -97,7 +107,15 @@ class PositionsToRotations:
         """(22, 3) global positions (m, Y up) → local rotations (22, 4) and root position (3,)."""
         p = np.asarray(positions, dtype=np.float64)
         if p.shape != (len(CANONICAL_JOINTS), 3):
-            raise ValueError(f"positions must have shape (22, 3), got {p.shape}")
+            raise InvalidMotionError(
+                f"positions must have shape (22, 3), got {p.shape}: the canonical joints in the "
+                "order of robot_retarget.skeleton.canonical.CANONICAL_JOINTS, metres, Y up"
+            )
+        if not np.isfinite(p).all():
+            raise InvalidMotionError(
+                "positions hold NaN or infinite values (a joint not seen: fill it or drop the "
+                "frame)"
+            )
         self._p_in[...] = p
         self._graph()
         if self._margin[0] > 0.0:
