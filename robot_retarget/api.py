@@ -20,7 +20,7 @@ from robot_retarget.errors import RetargetError
 from robot_retarget.motion.frame_rate import FPS_RANGE, plausible_fps
 from robot_retarget.motion.human_motion import HumanMotion, load_motion
 from robot_retarget.motion.trajectory import RobotTrajectory
-from robot_retarget.pipeline.convert import ClipResult, convert_motion
+from robot_retarget.pipeline.convert import LEAD_IN_SPEED_FRACTION, ClipResult, convert_motion
 from robot_retarget.pipeline.defaults import default_model_name
 from robot_retarget.pipeline.step import RetargetStep
 from robot_retarget.robot.config import RobotConfig
@@ -49,12 +49,16 @@ def retarget(
     *,
     fps: float | None = None,
     foot_lock: bool = False,
+    lead_in: bool = False,
 ) -> RetargetResult:
     """Retarget a BVH file (or a loaded :class:`HumanMotion`) to ``robot`` (a name, a YAML path
     or a loaded config) with ``model`` (a name, a runtime ``.npz`` or checkpoint path, or a
     loaded model; default: the shipped default — its numpy runtime, no torch needed), at ``fps``
     (default: the robot's control rate). ``foot_lock``: run the residual network's foot lock
-    (off on the robot by default, as in ``convert``)."""
+    (off on the robot by default, as in ``convert``). ``lead_in``: prepend the move from the
+    robot's init pose to the first frame at the ramp speed, stamped before t = 0, as
+    ``convert --lead-in`` does (played from the init pose, a file without it starts with the
+    move at the velocity limits that the safety layer allows)."""
     if fps is not None and not plausible_fps(fps):
         raise RetargetError(f"fps must be a frame rate, {FPS_RANGE}, got {fps!r}")
     if not isinstance(clip_or_motion, HumanMotion | str | os.PathLike):
@@ -81,5 +85,11 @@ def retarget(
     else:
         loaded = model
     step = RetargetStep(config, loaded, motion.skeleton, rate_hz=fps, foot_lock=foot_lock)
-    result = convert_motion(motion, step, fps=fps, whole_clip_branches=True)  # as convert
+    result = convert_motion(  # as convert
+        motion,
+        step,
+        fps=fps,
+        whole_clip_branches=True,
+        lead_in_speed_fraction=LEAD_IN_SPEED_FRACTION if lead_in else None,
+    )
     return RetargetResult(result.trajectory, result, loaded.name)

@@ -149,3 +149,22 @@ def test_the_readmes_live_loop_runs_as_written() -> None:
     with contextlib.redirect_stdout(printed):
         exec(compile(code, "README.md", "exec"), {})
     assert "safety: 0 of 24 commands clipped" in printed.getvalue()
+
+
+def test_retarget_takes_a_lead_in_as_convert_does() -> None:
+    """``lead_in=True``: the move from the init pose comes first, stamped before t = 0, at the
+    ramp speed; the clip's own frames are those without it."""
+    from robot_retarget.motion.synthetic import demo_motion
+    from robot_retarget.pipeline.convert import LEAD_IN_SPEED_FRACTION
+
+    motion = demo_motion(fps=30.0).frames(0, 15)
+    plain = rr.retarget(motion, "op3", "copy")
+    led = rr.retarget(motion, "op3", "copy", lead_in=True)
+    config = rr.load_robot("op3")
+    n = led.trajectory.num_frames - plain.trajectory.num_frames
+    assert n > 5
+    q = np.asarray(led.trajectory.q)
+    moved = np.vstack([config.init_pose, q[: n + 1]])  # from the init pose
+    steps = np.abs(np.diff(moved, axis=0)) / (config.max_velocity / config.control_rate_hz)
+    assert steps.max() <= LEAD_IN_SPEED_FRACTION + 1e-6
+    np.testing.assert_allclose(q[n:], plain.trajectory.q, atol=1e-9)

@@ -165,7 +165,7 @@ class ClipConverter:
         from robot_retarget.cli.output_paths import StagedWrites
         from robot_retarget.keypoints.lift import load_keypoint_motion
         from robot_retarget.motion.human_motion import load_bvh_motion, load_motion
-        from robot_retarget.pipeline.convert import convert_motion
+        from robot_retarget.pipeline.convert import LEAD_IN_SPEED_FRACTION, convert_motion
         from robot_retarget.pipeline.robot_bvh import write_robot_bvh
         from robot_retarget.render.preview import render_preview
         from robot_retarget.sources.keypoints import is_keypoint_input
@@ -200,7 +200,7 @@ class ClipConverter:
             self.step,
             fps=opt.fps,
             progress=progress,
-            lead_in_speed_fraction=0.25 if opt.lead_in else None,
+            lead_in_speed_fraction=LEAD_IN_SPEED_FRACTION if opt.lead_in else None,
             network=None if network is None else network.step,
             whole_clip_branches=opt.whole_clip_branches,
             lift_swing_feet=opt.lift_swing_feet,

@@ -133,6 +133,10 @@ def clip_line(
     )
 
 
+LEAD_IN_SPEED_FRACTION = 0.25
+"""``--lead-in``'s speed, a share of each joint's velocity limit: the stream's ramp speed."""
+
+
 def convert_motion(
     motion: HumanMotion,
     step: RetargetStep,
