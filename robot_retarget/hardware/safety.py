@@ -66,10 +66,11 @@ driven every joint to a limit at full speed."""
 
 CLOCK_BUDGET_PERIODS = 3.0
 """How much of each joint's velocity limit the clock budget saves up: three control periods'
-worth. The control loop keeps its schedule and runs a tick up to two periods late before it
-skips one (a tick more than a period late is followed at once by the next), and those ticks
-keep their full steps; commands sent faster than real time get only the time that passed. Two
-periods' worth held a loop's steps back whenever a sleep overshot by more than a period."""
+worth. The control loop sends no tick before it is due, follows a tick that ended less than a
+period behind the next one's time at once, and skips ticks when further behind: every such
+sequence keeps its full steps (tests/pipeline/test_loop_under_load.py); commands sent faster
+than real time get only the time that passed. Two periods' worth held a loop's steps back
+whenever a sleep overshot by more than a period."""
 
 
 class SafetyLayer(JointBackend):
@@ -109,7 +110,9 @@ class SafetyLayer(JointBackend):
         self._prev_sent: FloatArray | None = None
         # send() clamps against the last command sent and sends, as one step: two threads
         # sending at once would each clamp against the same last command (1.4-5x the limit).
-        self._send_lock = threading.Lock()
+        # Re-entrant: a backend may send through the layer from its own send. A caller that
+        # clamps and sends in two calls (the control loop) holds it around both.
+        self.send_lock = threading.RLock()
         if self._quantum is not None:
             _check_ticks_per_period(config, self._quantum, self.period_s)
 
@@ -278,7 +281,7 @@ class SafetyLayer(JointBackend):
 
     def send(self, cmd: JointCommand) -> JointCommand:
         """Clamp ``cmd`` and send it; callers on several threads are taken one at a time."""
-        with self._send_lock:
+        with self.send_lock:
             return self.backend.send(self.clamp(cmd))
 
     def report(self) -> str:

@@ -153,7 +153,6 @@ class ControlLoop:
         mailbox: Mailbox[LiveFrame] | None = None,
     ) -> None:
         self.step = step
-        step.warn_conventions = False  # each source tells its own sender's conventions
         self.config = step.config
         self.source = source
         self.settings = settings or LoopSettings()
@@ -228,10 +227,11 @@ class ControlLoop:
         self._last_stamp = stamp
         # As SafetyLayer.send, in two steps: the loop keeps the safe command itself (on the
         # backend's tick grid where it rounds), not the backend's echo.
-        safe = self.safety.clamp(JointCommand(q, stamp), max_step)
-        self._t_clamped = self.clock()
-        self.safety.backend.send(safe)
-        self._t_sent = self.clock()
+        with self.safety.send_lock:  # one sender at a time, as SafetyLayer.send
+            safe = self.safety.clamp(JointCommand(q, stamp), max_step)
+            self._t_clamped = self.clock()
+            self.safety.backend.send(safe)
+            self._t_sent = self.clock()
         self._q_cmd = np.array(safe.q, dtype=np.float64)
         self._sent_any = True
         self.stats.commands += 1
@@ -271,6 +271,9 @@ class ControlLoop:
         source still stops before the error propagates.
         """
         interrupted = stop_skipped = False
+        # Each source tells its own sender's conventions: the step's tell is off while it
+        # streams here (and as it was again after).
+        warn_conventions, self.step.warn_conventions = self.step.warn_conventions, False
         self.safety.connect()
         try:
             try:
@@ -283,6 +286,7 @@ class ControlLoop:
             except KeyboardInterrupt:
                 interrupted = stop_skipped = True
         finally:
+            self.step.warn_conventions = warn_conventions
             try:
                 self.safety.disconnect()
             finally:
@@ -367,10 +371,11 @@ class ControlLoop:
 
     def _next_tick(self, next_tick: float) -> tuple[float, int]:
         """When the tick after the one due at ``next_tick`` is due, and how many ticks were
-        skipped to get there. A tick less than a period late is followed by the next at once
-        (the schedule holds); a loop further behind skips the ticks it missed rather than send
-        them back to back. So at most two ticks' steps come within one period, which the
-        safety layer's clock budget (CLOCK_BUDGET_PERIODS deep) takes in full."""
+        skipped to get there. No tick is sent before it is due (but one woken early by input,
+        with its shorter step); a tick that ends less than a period behind the next one's time
+        is followed by it at once, and a loop further behind skips the ticks it missed rather
+        than send them back to back. The safety layer's clock budget (CLOCK_BUDGET_PERIODS
+        deep) takes every such sequence in full (tests/pipeline/test_loop_under_load.py)."""
         next_tick += self.period_s
         self._k += 1
         behind = self.clock() - next_tick

@@ -7,7 +7,6 @@ simulator or a trajectory file) come after it, in the caller.
 
 from __future__ import annotations
 
-import math
 import os
 import time
 import warnings
@@ -22,7 +21,7 @@ from robot_retarget.errors import InvalidMotionError, SolveError
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.optimize import Retargeter, SolveResult
 from robot_retarget.optimize.live_frame import LiveFrameSolver
-from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets
+from robot_retarget.optimize.targets import FrameTargetBuilder, FrameTargets, check_dt
 from robot_retarget.robot.canonical_skeleton import robot_canonical_skeleton
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.loader import as_robot_config
@@ -169,7 +168,7 @@ class RetargetStep:
         t0 = time.perf_counter()
         if settle and q_prev is not None:
             raise InvalidMotionError("settle starts a sequence: it takes no q_prev")
-        _check_frame_interval(dt_s)
+        dt = _check_frame_interval(dt_s)
         local_quats, root_pos = _checked_frame(local_quats, root_pos)
         if local_quats.shape[0] != self._source_joints:
             raise InvalidMotionError(
@@ -178,7 +177,7 @@ class RetargetStep:
                 "robot_retarget.skeleton.canonical.CANONICAL_JOINTS, unless set_source gave "
                 "another); the frame is refused"
             )
-        self._t_s += float(dt_s)
+        self._t_s += dt
         tell = (
             self._conventions.rotations(local_quats, self._t_s) if self.warn_conventions else None
         )
@@ -232,18 +231,16 @@ everywhere): a longer one is almost always milliseconds given as seconds, and it
 would let the joints move that many seconds' worth at once (4.9x a joint's limit at 8.0)."""
 
 
-def _check_frame_interval(dt_s: float) -> None:
-    """Beyond :data:`MAX_DT_S`: a one-line error saying what to pass (the solver refuses what
-    is not a positive number of seconds)."""
-    try:
-        dt = float(dt_s)
-    except (TypeError, ValueError):
-        return
-    if dt > MAX_DT_S and math.isfinite(dt):
+def _check_frame_interval(dt_s: float) -> float:
+    """``dt_s`` as a finite positive number of seconds up to :data:`MAX_DT_S`, else a one-line
+    SolveError saying what to pass; checked before anything of the frame is taken in."""
+    dt = check_dt(dt_s)
+    if dt > MAX_DT_S:
         raise SolveError(
             f"dt_s is {dt_s!r} s, more than {MAX_DT_S:g} s between two frames; it is in seconds "
             f"(milliseconds? then pass {dt / 1000.0:g}); no command was produced"
         )
+    return dt
 
 
 def _trunk_frame(targets: FrameTargets) -> FloatArray:

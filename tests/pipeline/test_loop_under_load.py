@@ -10,6 +10,8 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from robot_retarget.hardware.safety import SafetyLayer
+from robot_retarget.hardware.types import JointCommand
 from robot_retarget.motion.human_motion import HumanMotion
 from robot_retarget.nn.inference import LoadedModel
 from robot_retarget.optimize import Retargeter
@@ -137,3 +139,44 @@ def test_the_smooth_stop_keeps_its_speed_when_ticks_are_missed(
         assert result.safety.clock_clips == 0
     assert durations[0] > 0.3  # a real move (the demo's pose is not the safe pose)
     assert durations[1] < durations[0] + 5 * period
+
+
+def test_the_loop_sends_under_the_safety_layers_lock_and_leaves_the_steps_tell_as_it_was(
+    op3: RobotConfig, copy_model: LoadedModel, retargeter: Retargeter, demo: HumanMotion
+) -> None:
+    """Another thread sending on the same layer waits while the loop clamps and sends (the
+    lock SafetyLayer.send takes); frames that look x-y-z-w are the source's to tell, so the
+    step does not warn inside the loop, and warns again after it."""
+    import threading
+    import warnings
+
+    from robot_retarget.pipeline.step import ConventionWarning
+
+    held: list[bool] = []
+
+    class Probe(SimBackend):
+        def send(self, cmd: JointCommand) -> JointCommand:
+            other = threading.Thread(target=lambda: held.append(not lock.acquire(blocking=False)))
+            other.start()
+            other.join()
+            return super().send(cmd)
+
+    rolled = dataclasses.replace(demo, local_quats=np.roll(demo.local_quats, -1, axis=-1))
+    step = RetargetStep(op3, copy_model, rolled.skeleton, retargeter=retargeter)
+    clock = FakeClock()
+    safety = SafetyLayer(op3, Probe(op3, clock=clock.now), clock=clock.now)
+    lock = safety.send_lock
+    loop = ControlLoop(step, ScriptedSource(rolled), safety, LoopSettings(duration_s=1.5),
+                       clock=clock.now, sleep=clock.sleep)  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConventionWarning)
+        loop.run()
+    assert held
+    assert all(held)
+    assert step.warn_conventions
+    step.reset()  # outside the loop the same frames are told
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for k in range(rolled.num_frames):
+            step(rolled.local_quats[k], rolled.root_pos[k], 1 / rolled.fps)
+    assert any(issubclass(w.category, ConventionWarning) for w in caught)

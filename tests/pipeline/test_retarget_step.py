@@ -176,5 +176,8 @@ def test_units_a_user_mixes_up_are_refused(step: RetargetStep, demo: HumanMotion
         step.reset(np.degrees(step.config.init_pose) + 400.0)
     with pytest.raises(SolveError, match=r"q_prev: .* more than a turn"):
         step(quats, root, 0.008, q_prev=np.full(step.config.num_joints, 30.0))
+    for bad in (None, float("nan"), -0.008):
+        with pytest.raises(SolveError, match="finite positive number of seconds"):
+            step(quats, root, bad)  # type: ignore[arg-type]
     step.reset()
     assert np.isfinite(step(quats, root, 0.008).q).all()  # the step goes on
