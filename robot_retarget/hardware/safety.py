@@ -34,6 +34,7 @@ from robot_retarget.hardware.types import JointCommand, JointState
 from robot_retarget.hardware.velocity_budget import VelocityBudget
 from robot_retarget.robot.config import RobotConfig
 from robot_retarget.robot.loader import as_robot_config
+from robot_retarget.robot.pose_check import beyond_a_turn
 
 
 class UnsafeCommandError(HardwareError):
@@ -59,10 +60,6 @@ class ClipStats:
     max_step_excess_rad: float = 0.0
     per_joint: dict[str, int] = field(default_factory=dict)
 
-
-_ONE_TURN_RAD = 2.0 * np.pi
-"""A command beyond this is in other units (degrees): refused rather than clamped, which had
-driven every joint to a limit at full speed."""
 
 CLOCK_BUDGET_PERIODS = 3.0
 """How much of each joint's velocity limit the clock budget saves up: three control periods'
@@ -173,8 +170,10 @@ class SafetyLayer(JointBackend):
                 "the retargeting stage's output",
                 joints=joints,
             )
-        if (np.abs(q) > _ONE_TURN_RAD).any():
-            bad = np.abs(q) > _ONE_TURN_RAD
+        # Beyond a turn is other units (degrees): refused rather than clamped, which had driven
+        # every joint to a limit at full speed.
+        bad = beyond_a_turn(q)
+        if bad.any():
             joints = tuple(n for n, b in zip(names, bad, strict=True) if b)
             raise UnsafeCommandError(
                 f"command has {', '.join(joints)} beyond a turn ({float(q[bad][0]):g} rad): no "

@@ -50,6 +50,7 @@ from robot_retarget.optimize.targets import (
     trunk_bones,
 )
 from robot_retarget.robot.config import RobotConfig
+from robot_retarget.robot.pose_check import beyond_a_turn
 from robot_retarget.robot.retarget_settings import RetargetSettings
 from robot_retarget.robot.servo_models import servo_model
 
@@ -656,7 +657,7 @@ class Retargeter:
 
 def _check_single_turn(q: FloatArray, names: tuple[str, ...], what: str) -> None:
     """A pose no single-turn servo can be in (beyond ±2π rad) is in other units."""
-    far = np.abs(q) > 2.0 * np.pi
+    far = beyond_a_turn(q)
     if far.any():
         i = int(np.argmax(far))
         raise SolveError(

@@ -7,9 +7,19 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from robot_retarget.array_types import FloatArray
+from robot_retarget.array_types import BoolArray, FloatArray
 from robot_retarget.errors import InvalidMotionError
 from robot_retarget.robot.config import RobotConfig
+
+ONE_TURN_RAD = 2.0 * np.pi
+"""No joint of a humanoid's single-turn servos goes beyond this either way (the loader bounds
+every limit by the servo's tick range and a zero offset of at most π): a pose or a command
+past it is in other units, almost always degrees."""
+
+
+def beyond_a_turn(q: FloatArray) -> BoolArray:
+    """Per joint, whether ``q`` (finite, rad) lies beyond :data:`ONE_TURN_RAD`."""
+    return np.abs(q) > ONE_TURN_RAD
 
 
 def checked_pose(config: RobotConfig, q: npt.ArrayLike, what: str) -> FloatArray:
@@ -29,7 +39,7 @@ def checked_pose(config: RobotConfig, q: npt.ArrayLike, what: str) -> FloatArray
             f"{what} is {pose[bad[0]]} for joint {config.joint_names[bad[0]]}: angles must be "
             "finite"
         )
-    far = np.flatnonzero(np.abs(pose) > 2.0 * np.pi)
+    far = np.flatnonzero(beyond_a_turn(pose))
     if far.size:
         raise InvalidMotionError(
             f"{what} is {pose[far[0]]:g} for joint {config.joint_names[far[0]]}, more than a "

@@ -162,27 +162,25 @@ def test_a_sender_that_hangs_up_mid_frame_is_reported() -> None:
     assert "the sender closed the stream; its last frame was cut short" in src.stats.summary()
 
 
-def test_a_sender_faster_than_its_frame_time_is_warned_of() -> None:
-    """Frames are stamped k · Frame Time: a sender at three times that ran the performer three
-    times as fast, with no word (the safety report blamed a late loop)."""
+def _warnings_of_a_sender_at(speed: float) -> list[str]:
+    """400 frames fed ``speed`` times as fast as their Frame Time: the source's warnings."""
     header, rows = _split_file()
     with bvh_server([header]) as port:
         src = TcpBvhSource("127.0.0.1", port)
         with src:
             dt = src._dt
             for k, row in enumerate((rows * 20)[:400]):
-                src.feed(row, 100.0 + k * dt / 3.0)  # three frames per Frame Time
-    warned = [w for w in src.stats.warnings if "faster than their Frame Time" in w]
+                src.feed(row, 100.0 + k * dt / speed)
+    return src.stats.warnings
+
+
+def test_a_sender_faster_than_its_frame_time_is_warned_of() -> None:
+    """Frames are stamped k · Frame Time: a sender at three times that ran the performer three
+    times as fast, with no word (the safety report blamed a late loop)."""
+    warned = [w for w in _warnings_of_a_sender_at(3.0) if "faster than their Frame Time" in w]
     assert len(warned) == 1
     assert "3.0×" in warned[0]
 
 
 def test_a_sender_at_its_frame_time_is_not_warned_of() -> None:
-    header, rows = _split_file()
-    with bvh_server([header]) as port:
-        src = TcpBvhSource("127.0.0.1", port)
-        with src:
-            dt = src._dt
-            for k, row in enumerate((rows * 20)[:400]):
-                src.feed(row, 100.0 + k * dt)
-    assert not [w for w in src.stats.warnings if "Frame Time" in w]
+    assert not [w for w in _warnings_of_a_sender_at(1.0) if "Frame Time" in w]
